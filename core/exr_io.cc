@@ -1,0 +1,123 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "core/exr_io.h"
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfIO.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <ImfStdIO.h>
+#include <ImfStringAttribute.h>
+
+#include <cmath>
+#include <exception>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/file.h"
+
+namespace thinslab {
+namespace {
+
+// In-memory output stream, so the file on disk is written in one atomic step.
+class MemoryOStream : public Imf::OStream {
+ public:
+  MemoryOStream() : Imf::OStream("memory") {}
+  void write(const char c[], int n) override {
+    if (pos_ + n > buffer_.size()) buffer_.resize(pos_ + n);
+    std::copy(c, c + n, buffer_.begin() + static_cast<std::ptrdiff_t>(pos_));
+    pos_ += static_cast<size_t>(n);
+  }
+  uint64_t tellp() override { return pos_; }
+  void seekp(uint64_t pos) override { pos_ = pos; }
+  const std::string& buffer() const { return buffer_; }
+
+ private:
+  std::string buffer_;
+  size_t pos_ = 0;
+};
+
+}  // namespace
+
+Status WriteExr(const std::string& path, const Image& image, ExrPixelType pixel_type) {
+  if (image.empty()) return Status::Error(path + ": refusing to write an empty image");
+  const int w = image.width(), h = image.height(), nc = image.num_channels();
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      for (int c = 0; c < nc; ++c) {
+        if (!std::isfinite(image.at(x, y, c))) {
+          std::ostringstream msg;
+          msg << path << ": channel '" << image.channel_names()[c] << "' has a non-finite value at pixel ("
+              << x << ", " << y << "); refusing to write";
+          return Status::Error(msg.str());
+        }
+      }
+    }
+  }
+  try {
+    Imf::Header header(w, h);
+    header.compression() = Imf::ZIP_COMPRESSION;
+    const Imf::PixelType type = pixel_type == ExrPixelType::kHalf ? Imf::HALF : Imf::FLOAT;
+    for (const auto& name : image.channel_names()) header.channels().insert(name, Imf::Channel(type));
+    for (const auto& [key, value] : image.attributes()) {
+      header.insert(key, Imf::StringAttribute(value));
+    }
+    // OpenEXR converts FLOAT slices to HALF file channels itself.
+    Imf::FrameBuffer fb;
+    const size_t xstride = sizeof(float) * nc;
+    const size_t ystride = xstride * w;
+    char* base = reinterpret_cast<char*>(const_cast<float*>(image.data().data()));
+    for (int c = 0; c < nc; ++c) {
+      fb.insert(image.channel_names()[c],
+                Imf::Slice(Imf::FLOAT, base + c * sizeof(float), xstride, ystride));
+    }
+    MemoryOStream stream;
+    {
+      Imf::OutputFile file(stream, header);
+      file.setFrameBuffer(fb);
+      file.writePixels(h);
+    }
+    return WriteFileAtomically(path, stream.buffer());
+  } catch (const std::exception& e) {
+    return Status::Error(path + ": OpenEXR write failed: " + e.what());
+  }
+}
+
+Status ReadExr(const std::string& path, Image* image) {
+  if (!FileExists(path)) return Status::Error(path + ": file not found");
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i dw = file.header().dataWindow();
+    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+    if (w <= 0 || h <= 0) return Status::Error(path + ": empty data window");
+    std::vector<std::string> names;
+    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {
+      names.push_back(it.name());
+    }
+    if (names.empty()) return Status::Error(path + ": no channels");
+    Image out(w, h, names);
+    Imf::FrameBuffer fb;
+    const size_t xstride = sizeof(float) * names.size();
+    const size_t ystride = xstride * w;
+    char* base = reinterpret_cast<char*>(out.data().data()) -
+                 (static_cast<std::ptrdiff_t>(dw.min.x) * xstride + static_cast<std::ptrdiff_t>(dw.min.y) * ystride);
+    for (size_t c = 0; c < names.size(); ++c) {
+      fb.insert(names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), xstride, ystride));
+    }
+    file.setFrameBuffer(fb);
+    file.readPixels(dw.min.y, dw.max.y);
+    for (auto it = file.header().begin(); it != file.header().end(); ++it) {
+      if (const auto* s = dynamic_cast<const Imf::StringAttribute*>(&it.attribute())) {
+        out.attributes()[it.name()] = s->value();
+      }
+    }
+    *image = std::move(out);
+    return Status::Ok();
+  } catch (const std::exception& e) {
+    return Status::Error(path + ": not a readable OpenEXR file (" + e.what() + ")");
+  }
+}
+
+}  // namespace thinslab

@@ -1,0 +1,33 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "core/session.h"
+
+namespace thinslab {
+
+const char* FrameStatusName(FrameStatus status) {
+  switch (status) {
+    case FrameStatus::kOk: return "ok";
+    case FrameStatus::kFailed: return "failed";
+    case FrameStatus::kRetried: return "retried";
+  }
+  return "unknown";
+}
+
+const CameraInfo* Session::FindCamera(const std::string& id) const {
+  for (const auto& camera : rig.cameras) {
+    if (camera.id == id) return &camera;
+  }
+  return nullptr;
+}
+
+std::vector<const FrameRecord*> Session::UsableFrames(const std::string& kind,
+                                                      const std::string& sample_state) const {
+  std::vector<const FrameRecord*> out;
+  for (const auto& frame : frames) {
+    if (frame.kind != kind || frame.status == FrameStatus::kFailed) continue;
+    if (!sample_state.empty() && frame.sample_state != sample_state) continue;
+    out.push_back(&frame);
+  }
+  return out;
+}
+
+}  // namespace thinslab

@@ -1,0 +1,128 @@
+// SPDX-License-Identifier: Apache-2.0
+// The capture-session manifest (session.json): rig geometry and devices, and every frame
+// with its file, exposure, light state, timestamp and status. docs/format.md is the
+// normative description; this header mirrors it field for field.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/rigid3.h"
+
+namespace thinslab {
+
+constexpr int kSessionFormatMajor = 1;
+constexpr int kSessionFormatMinor = 0;
+constexpr char kSessionManifestName[] = "session.json";
+
+// OpenCV pinhole camera with distortion (k1, k2, p1, p2[, k3]); pixel centres at
+// (x + 0.5, y + 0.5) in thinslab images, so cx, cy are in OpenCV's integer-centre
+// convention and a thinslab pixel (x, y) centre projects from (x + 0.5 - 0.5) = x in OpenCV
+// terms. docs/conventions.md has the one-line rule.
+struct CameraInfo {
+  std::string id;          // "cam0"; frames refer to it.
+  std::string model;       // "sim", "aravis", "v4l2", or any label.
+  std::string serial;      // Optional.
+  int width_px = 0;
+  int height_px = 0;
+  double fx_px = 0, fy_px = 0, cx_px = 0, cy_px = 0;
+  std::vector<double> distortion;  // 0, 4 or 5 OpenCV coefficients.
+  Rigid3d cam_from_sample;         // Sample frame: sample plane z = 0, +z towards the projector.
+  int bit_depth = 0;               // 8, 10, 12, 14 or 16 for integer frames; 32 for float EXR.
+  double black_level_dn = 0;       // Subtracted before any radiometry.
+  double saturation_dn = 0;        // Values >= this are saturated (raw DN, before black level).
+  double gain_e_per_dn = 0;        // Conversion gain; 0 if unknown.
+};
+
+struct SampleInfo {
+  // Region of interest on the sample plane (metres, sample frame) and the pitch of the
+  // rectified grid that fits produce over it.
+  Eigen::Vector2d region_min_m = Eigen::Vector2d::Zero();
+  Eigen::Vector2d region_max_m = Eigen::Vector2d::Zero();
+  double pixel_pitch_m = 0;
+  double glass_thickness_m = 0;
+  double glass_ior = 1.5;
+  std::string contaminant_side = "board";  // "board" or "projector".
+};
+
+// Lambertian board parallel to the sample at z = -distance_m (shadow maps, laser lobes).
+struct BoardInfo {
+  bool present = false;
+  double distance_m = 0;
+  double albedo = 0;  // Unitless, (0, 1].
+};
+
+struct ProjectorInfo {
+  bool present = false;
+  std::string kind = "collimated";  // "collimated" or "pinhole".
+  Eigen::Vector3d direction_in_sample = Eigen::Vector3d(0, 0, -1);  // Propagation direction.
+};
+
+struct LaserInfo {
+  bool present = false;
+  Eigen::Vector3d origin_in_sample = Eigen::Vector3d::Zero();
+  Eigen::Vector3d direction_in_sample = Eigen::Vector3d(0, 0, -1);
+  double beam_radius_m = 0;
+  double wavelength_m = 0;
+};
+
+struct MonitorInfo {
+  bool present = false;
+  Rigid3d sample_from_monitor;  // Monitor plane z = 0 in its own frame, pixel (0,0) at origin.
+  double pixel_pitch_m = 0;
+  int width_px = 0;
+  int height_px = 0;
+};
+
+struct RigInfo {
+  std::vector<CameraInfo> cameras;
+  SampleInfo sample;
+  BoardInfo board;
+  ProjectorInfo projector;
+  LaserInfo laser;
+  MonitorInfo monitor;
+};
+
+enum class FrameStatus { kOk, kFailed, kRetried };
+const char* FrameStatusName(FrameStatus status);
+
+struct LightState {
+  std::string projector_pattern;         // "" = projector off; "flat", "gray_code_3", ...
+  bool laser_on = false;
+  std::optional<Eigen::Vector2d> dot_px;  // CRT/monitor dot position, monitor pixels.
+  double dot_radiance = 0;                // Relative radiance of the dot, if known.
+};
+
+struct FrameRecord {
+  int index = 0;              // Position in the session, contiguous from 0.
+  std::string camera_id;      // Must name a rig camera.
+  std::string kind;           // "shadow", "reference", "dark", "laser", "dot", ...
+  std::string sample_state;   // "contaminated", "clean", "none".
+  std::string file;           // Relative to the session folder; "" when status is failed.
+  double exposure_time_us = 0;  // Exposure the camera reported applying.
+  double gain_db = 0;
+  LightState light;
+  std::string timestamp_utc;  // ISO 8601.
+  FrameStatus status = FrameStatus::kOk;
+  std::string error;          // Device message when status != ok.
+};
+
+struct Session {
+  int format_major = kSessionFormatMajor;
+  int format_minor = kSessionFormatMinor;
+  std::string name;
+  std::string kind;  // "shadow_map", "laser_lobe", "dot_scan", "exposure_bracket".
+  std::string created_utc;
+  std::string software;  // Program that wrote the capture.
+  RigInfo rig;
+  std::vector<FrameRecord> frames;
+
+  const CameraInfo* FindCamera(const std::string& id) const;
+  // Frames of one kind (and sample state, if non-empty) with status ok or retried.
+  std::vector<const FrameRecord*> UsableFrames(const std::string& kind,
+                                               const std::string& sample_state = "") const;
+};
+
+}  // namespace thinslab

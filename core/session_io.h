@@ -1,0 +1,33 @@
+// SPDX-License-Identifier: Apache-2.0
+// Reading, writing and validating capture sessions (docs/format.md).
+#pragma once
+
+#include <string>
+
+#include "core/image.h"
+#include "core/session.h"
+#include "core/status.h"
+
+namespace thinslab {
+
+// Parses <session_dir>/session.json and validates it (ValidateSession). Every error names
+// the file and the JSON field path, e.g. "s/session.json: rig.cameras[0].fx_px: expected a
+// positive number, got -3".
+Status ReadSession(const std::string& session_dir, Session* session);
+// Writes <session_dir>/session.json atomically.
+Status WriteSession(const std::string& session_dir, const Session& session);
+// Semantic checks: known major version, positive intrinsics, unique frame indices, frames
+// naming known cameras, ok frames having an existing file inside the folder.
+Status ValidateSession(const Session& session, const std::string& session_dir);
+// Human summary for `thinslab info`.
+std::string SummarizeSession(const Session& session);
+
+// Loads one frame as a single-channel float image in DN with the black level subtracted
+// (PNG/TIFF 8/16-bit or EXR). Checks the size against the camera. Errors name the file.
+Status LoadFrame(const std::string& session_dir, const Session& session, const FrameRecord& frame,
+                 Image* image_dn);
+// Encodes a DN image (before black level removal) as a 16-bit (bit_depth > 8) or 8-bit PNG
+// and writes it atomically. Values are rounded and clamped to the bit depth.
+Status WriteRawFrame(const std::string& path, const Image& raw_dn, int bit_depth);
+
+}  // namespace thinslab
