@@ -64,14 +64,38 @@ Status WriteExr(const std::string& path, const Image& image, ExrPixelType pixel_
     for (const auto& [key, value] : image.attributes()) {
       header.insert(key, Imf::StringAttribute(value));
     }
-    // OpenEXR converts FLOAT slices to HALF file channels itself.
+    // OpenEXR converts pixel types when reading but not when writing: a HALF file channel
+    // needs a HALF slice.
     Imf::FrameBuffer fb;
-    const size_t xstride = sizeof(float) * nc;
-    const size_t ystride = xstride * w;
-    char* base = reinterpret_cast<char*>(const_cast<float*>(image.data().data()));
-    for (int c = 0; c < nc; ++c) {
-      fb.insert(image.channel_names()[c],
-                Imf::Slice(Imf::FLOAT, base + c * sizeof(float), xstride, ystride));
+    std::vector<half> half_pixels;
+    if (pixel_type == ExrPixelType::kHalf) {
+      half_pixels.resize(image.data().size());
+      for (size_t i = 0; i < half_pixels.size(); ++i) {
+        half_pixels[i] = half(image.data()[i]);
+        if (!half_pixels[i].isFinite()) {
+          const size_t pixel = i / nc;
+          std::ostringstream msg;
+          msg << path << ": channel '" << image.channel_names()[i % nc] << "' value "
+              << image.data()[i] << " at pixel (" << pixel % w << ", " << pixel / w
+              << ") overflows half precision; refusing to write";
+          return Status::Error(msg.str());
+        }
+      }
+      const size_t xstride = sizeof(half) * nc;
+      const size_t ystride = xstride * w;
+      char* base = reinterpret_cast<char*>(half_pixels.data());
+      for (int c = 0; c < nc; ++c) {
+        fb.insert(image.channel_names()[c],
+                  Imf::Slice(Imf::HALF, base + c * sizeof(half), xstride, ystride));
+      }
+    } else {
+      const size_t xstride = sizeof(float) * nc;
+      const size_t ystride = xstride * w;
+      char* base = reinterpret_cast<char*>(const_cast<float*>(image.data().data()));
+      for (int c = 0; c < nc; ++c) {
+        fb.insert(image.channel_names()[c],
+                  Imf::Slice(Imf::FLOAT, base + c * sizeof(float), xstride, ystride));
+      }
     }
     MemoryOStream stream;
     {

@@ -19,11 +19,11 @@ const CameraInfo* Session::FindCamera(const std::string& id) const {
   return nullptr;
 }
 
-std::vector<const FrameRecord*> Session::UsableFrames(const std::string& kind,
+std::vector<const FrameRecord*> Session::UsableFrames(const std::string& frame_kind,
                                                       const std::string& sample_state) const {
   std::vector<const FrameRecord*> out;
   for (const auto& frame : frames) {
-    if (frame.kind != kind || frame.status == FrameStatus::kFailed) continue;
+    if (frame.kind != frame_kind || frame.status == FrameStatus::kFailed) continue;
     if (!sample_state.empty() && frame.sample_state != sample_state) continue;
     out.push_back(&frame);
   }

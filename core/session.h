@@ -99,7 +99,7 @@ struct FrameRecord {
   int index = 0;              // Position in the session, contiguous from 0.
   std::string camera_id;      // Must name a rig camera.
   std::string kind;           // "shadow", "reference", "dark", "laser", "dot", ...
-  std::string sample_state;   // "contaminated", "clean", "none".
+  std::string sample_state = "none";  // "contaminated", "clean", "none".
   std::string file;           // Relative to the session folder; "" when status is failed.
   double exposure_time_us = 0;  // Exposure the camera reported applying.
   double gain_db = 0;

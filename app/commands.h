@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: Apache-2.0
+// The thinslab subcommands. Each takes the arguments after its name and returns an exit code;
+// errors are printed as one line naming the file/field/option.
+#pragma once
+
+#include <string>
+
+#include "core/status.h"
+#include "fit/tau_evaluation.h"
+#include "fit/tau_fit.h"
+#include "sim/synthesize_shadow_session.h"
+
+namespace thinslab {
+
+int RunInfo(int argc, char** argv);
+int RunSim(int argc, char** argv);
+int RunFit(int argc, char** argv);
+int RunDemo(int argc, char** argv);
+
+// Shared by `fit tau` and `demo`: reads the session, rectifies, fits and writes
+// <out_dir>/{tau.exr, tau_falsecolor.png, tau_plain_falsecolor.png, summary.json, summary.txt,
+// options.ini} atomically (the folder appears complete or not at all). If the session holds
+// ground_truth/tau.exr, also writes comparison.json and fills `comparison`.
+struct FitTauRun {
+  TauFitOptions fit;
+  int supersample = 4;
+  double board_distance_m = 0;  // 0: from the manifest.
+  std::string options_ini;      // Effective options, written as options.ini.
+};
+Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,
+                      TauFitSummary* summary, TauComparison* comparison, bool* has_truth);
+
+// Adds the sim rig and session options to a parser (used by `sim shadow-maps` and `demo`).
+class OptionParser;
+void AddSimShadowOptions(OptionParser* parser, SyntheticShadowSessionOptions* options, double* board_distance_mm,
+                         std::string* tau_path);
+// Loads --tau EXR or generates the bundled demo pattern on the rig's grid when tau_path is "".
+Status LoadOrGenerateTau(const std::string& tau_path, uint64_t seed, Image* tau);
+
+}  // namespace thinslab

@@ -1,0 +1,180 @@
+// SPDX-License-Identifier: Apache-2.0
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <iostream>
+#include <sstream>
+
+#include "app/commands.h"
+#include "app/option_parser.h"
+#include "calib/shadow_map_preparation.h"
+#include "core/exr_io.h"
+#include "core/false_color.h"
+#include "core/file.h"
+#include "core/session_io.h"
+#include "core/version.h"
+
+namespace thinslab {
+namespace {
+
+std::string RigidToJson(const Rigid3d& t) {
+  nlohmann::json j;
+  j["rotation_wxyz"] = {t.rotation.w(), t.rotation.x(), t.rotation.y(), t.rotation.z()};
+  j["translation_m"] = {t.translation.x(), t.translation.y(), t.translation.z()};
+  return j.dump();
+}
+
+std::string PointToJson(const Eigen::Vector2d& p) { return nlohmann::json({p.x(), p.y()}).dump(); }
+
+std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, double color_max) {
+  nlohmann::json j;
+  j["format"] = "thinslab-fit-summary";
+  j["format_version"] = "1.0";
+  j["falsecolor_range"] = {0.0, color_max};
+  j["result"] = s.IsUsable() ? "success" : "failure";
+  j["message"] = s.message;
+  j["grid"] = {s.width, s.height};
+  j["pixels"] = {{"total", s.pixels_total}, {"fitted", s.pixels_fitted}, {"dark", s.pixels_dark},
+                 {"saturated", s.pixels_saturated}, {"outside", s.pixels_outside}, {"clamped", s.pixels_clamped}};
+  j["outer_iterations"] = s.outer_iterations;
+  j["final_max_update_tau"] = s.final_max_update_tau;
+  j["rms_normalized_residual"] = s.rms_normalized_residual;
+  j["mean_scattered_fraction"] = s.mean_scattered_fraction;
+  j["frames"] = {{"shadow", data.num_shadow_frames}, {"reference", data.num_reference_frames},
+                 {"dark", data.num_dark_frames}};
+  j["timings_s"] = {{"plain", s.plain_s}, {"refine", s.refine_s}, {"fit_total", s.total_s}};
+  return j.dump(2) + "\n";
+}
+
+}  // namespace
+
+Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,
+                      TauFitSummary* summary, TauComparison* comparison, bool* has_truth) {
+  *has_truth = false;
+  Session session;
+  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
+  ShadowMapPreparationOptions prep_options;
+  prep_options.supersample = run.supersample;
+  prep_options.board_distance_m = run.board_distance_m;
+  RectifiedShadowMaps data;
+  THINSLAB_RETURN_IF_ERROR(PrepareShadowMaps(session_dir, session, prep_options, &data));
+  int64_t in_view = 0, saturated = 0;
+  for (size_t i = 0; i < data.outside.data().size(); ++i) {
+    if (data.outside.data()[i] > 0) continue;
+    ++in_view;
+    if (data.saturated.data()[i] > 0) ++saturated;
+  }
+  if (in_view == 0) {
+    return Status::Error(JoinPath(session_dir, kSessionManifestName) +
+                         ": rig.cameras[0].cam_from_sample: the camera does not see the board region");
+  }
+  if (saturated * 2 > in_view) {
+    std::ostringstream msg;
+    msg << session_dir << ": frames: the shadow or reference frames are saturated over "
+        << (100 * saturated / in_view) << "% of the board region; lower exposure_time_us";
+    return Status::Error(msg.str());
+  }
+  TauMaps maps;
+  THINSLAB_RETURN_IF_ERROR(FitTau(run.fit, data, &maps, summary));
+
+  StagedDirectory out(out_dir);
+  THINSLAB_RETURN_IF_ERROR(out.Init());
+  const SampleInfo& sample = session.rig.sample;
+  Image& tau = maps.tau;
+  tau.attributes()["format_version"] = "1.0";
+  tau.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
+  tau.attributes()["git_hash"] = THINSLAB_GIT_HASH;
+  tau.attributes()["options_digest"] = "fnv1a64:" + Digest(run.options_ini);
+  tau.attributes()["cam_from_sample"] = RigidToJson(session.rig.cameras[0].cam_from_sample);
+  tau.attributes()["source_session"] = session_dir;
+  tau.attributes()["region_min_m"] = PointToJson(sample.region_min_m);
+  tau.attributes()["region_max_m"] = PointToJson(sample.region_max_m);
+  tau.attributes()["pixel_pitch_m"] = nlohmann::json(data.pixel_pitch_m).dump();
+  tau.attributes()["model"] = run.fit.refine_scattering ? "gu2007_eq5_eq6_refined" : "gu2007_eq7";
+  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "tau.exr"), tau));
+
+  const Image status = tau.Channel(2);
+  FalseColorOptions color;
+  color.label = "tau";
+  color.max_value = 1.5;
+  for (float v : tau.Channel(0).data()) color.max_value = std::max(color.max_value, static_cast<double>(v));
+  color.max_value = std::min(color.max_value, run.fit.tau_max);
+  THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_falsecolor.png"), tau, 0, &status, color));
+  color.label = "tau Eq.7";
+  THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_plain_falsecolor.png"), tau, 1, &status, color));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, color.max_value)));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
+
+  const std::string truth_path = JoinPath(JoinPath(session_dir, "ground_truth"), "tau.exr");
+  if (FileExists(truth_path)) {
+    Image truth;
+    THINSLAB_RETURN_IF_ERROR(ReadExr(truth_path, &truth));
+    THINSLAB_RETURN_IF_ERROR(CompareTauWithTruth(tau, truth, 0.05, 1.5, comparison).WithContext(truth_path));
+    *has_truth = true;
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "comparison.json"), comparison->ToJson()));
+    color.label = "tau true";
+    THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "truth_falsecolor.png"), truth, 0, nullptr, color));
+    Image error(tau.width(), tau.height(), {"error"});
+    const int tc = truth.ChannelIndex("tau") >= 0 ? truth.ChannelIndex("tau") : 0;
+    for (int y = 0; y < tau.height(); ++y) {
+      for (int x = 0; x < tau.width(); ++x) error.at(x, y) = tau.at(x, y, 0) - truth.at(x, y, tc);
+    }
+    FalseColorOptions err_color;
+    err_color.label = "tau err";
+    err_color.min_value = -0.1;
+    err_color.max_value = 0.1;
+    THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "error_falsecolor.png"), error, 0, &status, err_color));
+  }
+  return out.Commit();
+}
+
+void AddFitTauOptions(OptionParser* parser, FitTauRun* run) {
+  TauFitOptions& fit = run->fit;
+  parser->AddBool("refine", &fit.refine_scattering, "model the scattered light (Gu Eq. 6); false = plain Eq. 7");
+  parser->AddDouble("albedo", &fit.layer_albedo, "layer single-scattering albedo omega0 [0, 1]");
+  parser->AddDouble("g", &fit.layer_g, "layer Henyey-Greenstein g (-1, 1)");
+  parser->AddString("reference", &fit.reference, "'frame' (clean-glass frames) or 'auto' (fit to clean regions)");
+  parser->AddDouble("tau-max", &fit.tau_max, "largest tau; darker pixels are clamped and flagged");
+  parser->AddDouble("min-reference-fraction", &fit.min_reference_fraction, "dark mask threshold (of median)");
+  parser->AddDouble("smoothness-sigma-tau", &fit.smoothness_sigma_tau, "Huber smoothness prior scale; 0 = off");
+  parser->AddInt("max-outer-iterations", &fit.max_outer_iterations, "scatter fixed-point iterations");
+  parser->AddDouble("kernel-max-angle-deg", &fit.kernel_max_angle_deg, "largest scattering angle modelled");
+  parser->AddInt("threads", &fit.num_threads, "threads for Ceres");
+  parser->AddInt("supersample", &run->supersample, "rectification samples per pixel side");
+  parser->AddDouble("board-distance-m", &run->board_distance_m, "override of the manifest's board distance [m]");
+}
+
+int RunFit(int argc, char** argv) {
+  const std::string what = argc > 0 ? argv[0] : "";
+  if (what != "tau") {
+    std::cerr << "usage: thinslab fit tau CAPTURE [--out DIR] [options]\n";
+    return what.empty() || what == "--help" ? 0 : 2;
+  }
+  FitTauRun run;
+  std::string session_dir, out_dir;
+  OptionParser parser("fit tau");
+  parser.AddPositional("CAPTURE", &session_dir, "shadow-map capture session folder");
+  parser.AddString("out", &out_dir, "output folder (default CAPTURE/fit/tau)");
+  AddFitTauOptions(&parser, &run);
+  Status status = parser.Parse(argc - 1, argv + 1);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "tau");
+  run.options_ini = parser.ToIni();
+  TauFitSummary summary;
+  TauComparison comparison;
+  bool has_truth = false;
+  if (status.ok()) status = FitTauPipeline(session_dir, out_dir, run, &summary, &comparison, &has_truth);
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  std::cout << summary.BriefReport() << "\nwrote " << out_dir << "\n";
+  if (has_truth) std::cout << comparison.ToJson();
+  return 0;
+}
+
+}  // namespace thinslab

@@ -1,0 +1,29 @@
+// SPDX-License-Identifier: Apache-2.0
+#include <iostream>
+
+#include "app/commands.h"
+#include "app/option_parser.h"
+#include "core/session_io.h"
+
+namespace thinslab {
+
+int RunInfo(int argc, char** argv) {
+  std::string session_dir;
+  OptionParser parser("info");
+  parser.AddPositional("CAPTURE", &session_dir, "capture session folder (holding session.json)");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  Session session;
+  if (status.ok()) status = ReadSession(session_dir, &session);
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  std::cout << SummarizeSession(session) << "valid: yes\n";
+  return 0;
+}
+
+}  // namespace thinslab

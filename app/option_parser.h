@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: Apache-2.0
+// Command-line options: each subcommand registers typed options bound to its stage's Options
+// fields, parses "--name value" / "--name=value", and can write the effective values as an
+// INI file (options.ini) next to its outputs. Errors name the option and what is wrong.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+
+namespace thinslab {
+
+class OptionParser {
+ public:
+  explicit OptionParser(std::string command) : command_(std::move(command)) {}
+
+  void AddDouble(const std::string& name, double* value, const std::string& help);
+  void AddInt(const std::string& name, int* value, const std::string& help);
+  void AddUint64(const std::string& name, uint64_t* value, const std::string& help);
+  void AddString(const std::string& name, std::string* value, const std::string& help);
+  void AddBool(const std::string& name, bool* value, const std::string& help);
+  // Positional arguments in order; `required` ones must be given.
+  void AddPositional(const std::string& name, std::string* value, const std::string& help, bool required = true);
+
+  Status Parse(int argc, char** argv);
+  bool help_requested() const { return help_requested_; }
+  std::string Usage() const;
+  // "name = value" lines, for options.ini.
+  std::string ToIni() const;
+
+ private:
+  struct Option {
+    std::string name, help, kind;
+    std::function<bool(const std::string&)> set;
+    std::function<std::string()> get;
+  };
+  struct Positional {
+    std::string name, help;
+    std::string* value;
+    bool required;
+  };
+  std::string command_;
+  std::vector<Option> options_;
+  std::vector<Positional> positionals_;
+  bool help_requested_ = false;
+};
+
+// FNV-1a 64-bit hash as 16 hex digits (provenance digest of options.ini).
+std::string Digest(const std::string& text);
+
+}  // namespace thinslab

@@ -1,0 +1,128 @@
+// SPDX-License-Identifier: Apache-2.0
+#include <iostream>
+
+#include "app/commands.h"
+#include "app/option_parser.h"
+#include "core/exr_io.h"
+#include "sim/contamination_pattern.h"
+
+#ifndef THINSLAB_DATA_DIR
+#define THINSLAB_DATA_DIR "data"
+#endif
+
+namespace thinslab {
+
+void AddSimShadowOptions(OptionParser* parser, SyntheticShadowSessionOptions* options, double* board_distance_mm,
+                         std::string* tau_path) {
+  SimShadowMapOptions& rig = options->rig;
+  parser->AddString("tau", tau_path,
+                    "contaminant texture EXR (channel 'tau'); default: the bundled demo pattern "
+                    "data/patterns/demo_contamination.exr");
+  parser->AddDouble("board-distance-mm", board_distance_mm, "layer-to-board distance D [mm]");
+  parser->AddDouble("albedo", &rig.layer_albedo, "contaminant single-scattering albedo omega0 [0, 1]");
+  parser->AddDouble("g", &rig.layer_g, "contaminant Henyey-Greenstein g (-1, 1)");
+  parser->AddDouble("pixel-pitch-m", &rig.pixel_pitch_m, "pitch of the tau texture on the sample [m]");
+  parser->AddDouble("projector-falloff", &rig.projector_falloff, "relative projector irradiance loss at the corner");
+  parser->AddDouble("camera-tilt-deg", &rig.camera_tilt_deg, "camera tilt from the board normal [deg]");
+  parser->AddInt("camera-width-px", &rig.camera_width_px, "camera image width [px]");
+  parser->AddInt("camera-height-px", &rig.camera_height_px, "camera image height [px]");
+  parser->AddDouble("reference-fill", &rig.reference_fill, "clean-board signal at the image centre / full well");
+  parser->AddInt("photons", &rig.monte_carlo.num_photons, "Monte Carlo photons per tau node");
+  parser->AddDouble("full-well-e", &rig.sensor.full_well_e, "sensor full well [electrons]");
+  parser->AddDouble("read-noise-e", &rig.sensor.read_noise_e, "sensor read noise [electrons RMS]");
+  parser->AddInt("bit-depth", &rig.sensor.bit_depth, "sensor bit depth (8..16)");
+  parser->AddBool("noise", &rig.sensor.enable_noise, "simulate shot and read noise");
+  parser->AddUint64("seed", &rig.seed, "seed of every random choice of the simulation");
+  parser->AddInt("frames", &options->session.frames_per_state, "frames per state (shadow, reference)");
+  parser->AddInt("dark-frames", &options->session.dark_frames, "dark frames (projector off)");
+  parser->AddString("name", &options->name, "session name");
+}
+
+Status LoadOrGenerateTau(const std::string& tau_path, uint64_t seed, Image* tau) {
+  const std::string path = tau_path.empty() ? std::string(THINSLAB_DATA_DIR) + "/patterns/demo_contamination.exr" : tau_path;
+  Image image;
+  Status status = ReadExr(path, &image);
+  if (!status.ok()) {
+    if (!tau_path.empty()) return status;
+    // The bundled pattern is generated from a seed; regenerate it if the data folder is absent.
+    ContaminationPatternOptions pattern;
+    pattern.seed = seed;
+    *tau = GenerateContaminationPattern(pattern);
+    return Status::Ok();
+  }
+  int channel = image.ChannelIndex("tau");
+  if (channel < 0 && image.num_channels() == 1) channel = 0;
+  if (channel < 0) return Status::Error(path + ": no channel 'tau'");
+  *tau = image.Channel(channel);
+  return Status::Ok();
+}
+
+namespace {
+
+int RunSimShadowMaps(int argc, char** argv) {
+  SyntheticShadowSessionOptions options;
+  double board_distance_mm = options.rig.board_distance_m * 1e3;
+  std::string tau_path, out_dir;
+  OptionParser parser("sim shadow-maps");
+  parser.AddPositional("OUT", &out_dir, "new session folder to write");
+  AddSimShadowOptions(&parser, &options, &board_distance_mm, &tau_path);
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  options.rig.board_distance_m = board_distance_mm * 1e-3;
+  Image tau;
+  if (status.ok()) status = LoadOrGenerateTau(tau_path, options.rig.seed, &tau);
+  if (status.ok()) status = SynthesizeShadowMapSession(options, tau, out_dir);
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  std::cout << "wrote shadow-map session " << out_dir << "\n";
+  return 0;
+}
+
+int RunSimPattern(int argc, char** argv) {
+  ContaminationPatternOptions options;
+  std::string out_path;
+  OptionParser parser("sim pattern");
+  parser.AddPositional("OUT", &out_path, "EXR file to write (channel 'tau')");
+  parser.AddInt("width-px", &options.width_px, "texture width");
+  parser.AddInt("height-px", &options.height_px, "texture height");
+  parser.AddDouble("max-tau", &options.max_tau, "densest dust speck");
+  parser.AddInt("dust-specks", &options.num_dust_specks, "number of dust specks");
+  parser.AddUint64("seed", &options.seed, "random seed");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  if (status.ok() && (options.width_px < 8 || options.height_px < 8 || options.width_px > 16384 ||
+                      options.height_px > 16384)) {
+    status = Status::Error("thinslab sim pattern: --width-px/--height-px must be in [8, 16384]");
+  }
+  if (status.ok()) {
+    Image tau = GenerateContaminationPattern(options);
+    tau.attributes()["generator"] = "thinslab sim pattern, seed " + std::to_string(options.seed);
+    status = WriteExr(out_path, tau, ExrPixelType::kHalf);
+  }
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  std::cout << "wrote " << out_path << "\n";
+  return 0;
+}
+
+}  // namespace
+
+int RunSim(int argc, char** argv) {
+  const std::string what = argc > 0 ? argv[0] : "";
+  if (what == "shadow-maps") return RunSimShadowMaps(argc - 1, argv + 1);
+  if (what == "pattern") return RunSimPattern(argc - 1, argv + 1);
+  std::cerr << "usage: thinslab sim shadow-maps OUT [options] | thinslab sim pattern OUT [options]\n";
+  return what.empty() || what == "--help" ? 0 : 2;
+}
+
+}  // namespace thinslab

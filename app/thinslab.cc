@@ -1,0 +1,64 @@
+// SPDX-License-Identifier: Apache-2.0
+// The thinslab command: a table of subcommands (COLMAP's exe/colmap.cc pattern).
+#include <glog/logging.h>
+
+#include <cstring>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "app/commands.h"
+#include "core/version.h"
+
+namespace {
+
+struct Command {
+  const char* name;
+  int (*run)(int, char**);
+  const char* help;
+};
+
+int RunVersion(int, char**) {
+  std::cout << "thinslab " << THINSLAB_VERSION_STRING << " (git " << THINSLAB_GIT_HASH << ")\n";
+  return 0;
+}
+
+int RunHelp(int, char**);
+
+const std::vector<Command>& Commands() {
+  static const std::vector<Command> commands = {
+      {"help", RunHelp, "list the commands"},
+      {"version", RunVersion, "print version and git hash"},
+      {"info", thinslab::RunInfo, "validate a capture session and summarise it"},
+      {"sim", thinslab::RunSim, "simulate a capture session (sim shadow-maps | sim pattern)"},
+      {"fit", thinslab::RunFit, "fit a model to a capture (fit tau)"},
+      {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy"},
+  };
+  return commands;
+}
+
+int RunHelp(int, char**) {
+  std::cout << "thinslab " << THINSLAB_VERSION_STRING
+            << ": measurement and fitting for thin transparent samples\n\nusage: thinslab <command> [args]\n\n";
+  for (const auto& c : Commands()) std::cout << "  " << c.name << std::string(10 - std::strlen(c.name), ' ') << c.help << "\n";
+  std::cout << "\n'thinslab <command> --help' lists a command's options.\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  google::InitGoogleLogging(argv[0]);
+  FLAGS_logtostderr = true;
+  FLAGS_minloglevel = 1;
+  if (argc < 2) {
+    RunHelp(0, nullptr);
+    return 1;
+  }
+  const std::string name = argv[1];
+  for (const auto& c : Commands()) {
+    if (name == c.name) return c.run(argc - 2, argv + 2);
+  }
+  std::cerr << "thinslab: unknown command '" << name << "' (try 'thinslab help')\n";
+  return 2;
+}

@@ -1,0 +1,44 @@
+// SPDX-License-Identifier: Apache-2.0
+// Turns the raw frames of a shadow-map session into radiometrically linear, averaged,
+// dark-subtracted images rectified onto the board plane (z = -board.distance_m in the sample
+// frame), on the sample region grid of the manifest, so pixel (i, j) of every output is the
+// board point below sample point (region_min + (i + 0.5, j + 0.5) * pitch).
+#pragma once
+
+#include <string>
+
+#include "core/image.h"
+#include "core/session.h"
+#include "core/status.h"
+
+namespace thinslab {
+
+struct ShadowMapPreparationOptions {
+  // Each rectified pixel averages n x n board points, each taking the camera pixel it falls
+  // in (area-weighted resampling).
+  int supersample = 4;
+  // Override of the manifest's board distance (metres); 0 = use the manifest.
+  double board_distance_m = 0;
+
+  bool Check(std::string* error) const;
+};
+
+struct RectifiedShadowMaps {
+  Image shadow;              // Mean DN per microsecond, contaminated sample.
+  Image reference;           // Mean DN per microsecond, clean sample; empty if not captured.
+  Image shadow_variance;     // Variance of `shadow` (DN/us)^2.
+  Image reference_variance;  // Variance of `reference`.
+  Image saturated;           // 1 where a contributing raw pixel saturated in any frame.
+  Image outside;             // 1 where the board point is outside the camera image.
+  Eigen::Vector2d region_min_m = Eigen::Vector2d::Zero();
+  double pixel_pitch_m = 0;
+  double board_distance_m = 0;
+  int num_shadow_frames = 0;
+  int num_reference_frames = 0;
+  int num_dark_frames = 0;
+};
+
+Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
+                         const ShadowMapPreparationOptions& options, RectifiedShadowMaps* maps);
+
+}  // namespace thinslab

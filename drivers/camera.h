@@ -1,0 +1,32 @@
+// SPDX-License-Identifier: Apache-2.0
+// Camera interface. Real back-ends (Aravis, V4L2) and sim/SimCamera implement it; acquire/
+// speaks only this interface, so the same session code runs at the rig and in CI.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "core/image.h"
+#include "core/session.h"
+#include "core/status.h"
+
+namespace thinslab {
+
+struct CapturedFrame {
+  Image raw_dn;                   // Single channel, raw digital numbers (black level included).
+  double exposure_time_us = 0;    // Exposure the device reports having applied.
+  uint64_t frame_id = 0;          // Device frame counter.
+  std::string timestamp_utc;      // ISO 8601.
+};
+
+class Camera {
+ public:
+  virtual ~Camera() = default;
+  // Geometry, bit depth and response as recorded in the manifest.
+  virtual const CameraInfo& info() const = 0;
+  // Cameras round exposures: `applied_us` receives the value read back from the device.
+  virtual Status SetExposure(double requested_us, double* applied_us) = 0;
+  virtual Status Capture(CapturedFrame* frame) = 0;
+};
+
+}  // namespace thinslab

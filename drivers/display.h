@@ -1,0 +1,19 @@
+// SPDX-License-Identifier: Apache-2.0
+// Light-source interfaces: a projector/monitor showing named patterns. "" switches it off
+// (black). Real back-end: the SDL2 pattern window; simulated: sim/SimProjector.
+#pragma once
+
+#include <string>
+
+#include "core/status.h"
+
+namespace thinslab {
+
+class Projector {
+ public:
+  virtual ~Projector() = default;
+  // Shows `pattern` ("flat", "" for off, or a generator id) and waits until it is settled.
+  virtual Status ShowPattern(const std::string& pattern) = 0;
+};
+
+}  // namespace thinslab

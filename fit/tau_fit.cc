@@ -1,0 +1,355 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "fit/tau_fit.h"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <sstream>
+#include <vector>
+
+#include "core/math.h"
+#include "fit/cost_functions/shadow_attenuation_cost.h"
+#include "optics/dirty_glass.h"
+#include "optics/shadow_map_model.h"
+
+namespace thinslab {
+
+bool TauFitOptions::Check(std::string* error) const {
+  std::ostringstream msg;
+  if (!(layer_albedo >= 0 && layer_albedo <= 1)) {
+    msg << "TauFitOptions::layer_albedo = " << layer_albedo << ". Violated constraint: [0, 1]";
+  } else if (!(layer_g > -1 && layer_g < 1)) {
+    msg << "TauFitOptions::layer_g = " << layer_g << ". Violated constraint: (-1, 1)";
+  } else if (reference != "frame" && reference != "auto") {
+    msg << "TauFitOptions::reference = '" << reference << "'. Violated constraint: 'frame' or 'auto'";
+  } else if (!(tau_max > 0 && tau_max <= 20)) {
+    msg << "TauFitOptions::tau_max = " << tau_max << ". Violated constraint: (0, 20]";
+  } else if (!(min_reference_fraction > 0 && min_reference_fraction < 1)) {
+    msg << "TauFitOptions::min_reference_fraction = " << min_reference_fraction << ". Violated constraint: (0, 1)";
+  } else if (!(smoothness_sigma_tau >= 0)) {
+    msg << "TauFitOptions::smoothness_sigma_tau = " << smoothness_sigma_tau << ". Violated constraint: >= 0";
+  } else if (max_outer_iterations < 1) {
+    msg << "TauFitOptions::max_outer_iterations = " << max_outer_iterations << ". Violated constraint: >= 1";
+  } else if (!(outer_tolerance_tau > 0)) {
+    msg << "TauFitOptions::outer_tolerance_tau = " << outer_tolerance_tau << ". Violated constraint: > 0";
+  } else if (!(kernel_max_angle_deg > 0 && kernel_max_angle_deg < 90)) {
+    msg << "TauFitOptions::kernel_max_angle_deg = " << kernel_max_angle_deg << ". Violated constraint: (0, 90)";
+  } else if (num_threads < 1) {
+    msg << "TauFitOptions::num_threads = " << num_threads << ". Violated constraint: >= 1";
+  } else {
+    return true;
+  }
+  *error = msg.str();
+  return false;
+}
+
+std::string TauFitSummary::BriefReport() const {
+  std::ostringstream out;
+  out << "FitTau: " << (result == Result::kSuccess ? "success" : (result == Result::kFailure ? "failure" : "not run"))
+      << ", " << pixels_fitted << "/" << pixels_total << " pixels fitted, " << outer_iterations
+      << " outer iterations, " << total_s << " s";
+  return out.str();
+}
+
+std::string TauFitSummary::FullReport() const {
+  auto pct = [&](int64_t n) { return pixels_total > 0 ? 100.0 * n / pixels_total : 0.0; };
+  std::ostringstream out;
+  out << BriefReport() << "\n"
+      << "message: " << message << "\n"
+      << "grid: " << width << " x " << height << "\n"
+      << "pixels fitted:    " << pixels_fitted << " (" << pct(pixels_fitted) << " %)\n"
+      << "pixels dark:      " << pixels_dark << " (" << pct(pixels_dark) << " %)\n"
+      << "pixels saturated: " << pixels_saturated << " (" << pct(pixels_saturated) << " %)\n"
+      << "pixels outside:   " << pixels_outside << " (" << pct(pixels_outside) << " %)\n"
+      << "pixels clamped:   " << pixels_clamped << " (" << pct(pixels_clamped) << " %)\n"
+      << "final max tau update: " << final_max_update_tau << "\n"
+      << "rms normalized residual: " << rms_normalized_residual << "\n"
+      << "mean scattered fraction of measured light: " << mean_scattered_fraction << "\n"
+      << "time plain / refine / total [s]: " << plain_s << " / " << refine_s << " / " << total_s << "\n";
+  return out.str();
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+// Quadratic surface through the clean part of the shadow image: iteratively keeps pixels no
+// more than 2.5 robust sigmas below the current fit (contaminant only darkens, Eq. 5).
+Status FitAutoReference(const Image& shadow, const std::vector<uint8_t>& usable, Image* reference) {
+  const int w = shadow.width(), h = shadow.height();
+  std::vector<int> keep;
+  for (int i = 0; i < w * h; ++i) {
+    if (usable[i]) keep.push_back(i);
+  }
+  const size_t total = keep.size();
+  if (total < 50) return Status::Error("auto reference: fewer than 50 usable pixels");
+  auto basis = [&](int i, double* b) {
+    const double x = ((i % w) + 0.5) / w - 0.5, y = ((i / w) + 0.5) / h - 0.5;
+    b[0] = 1; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
+  };
+  Eigen::Matrix<double, 6, 1> coef = Eigen::Matrix<double, 6, 1>::Zero();
+  for (int iteration = 0; iteration < 15; ++iteration) {
+    Eigen::MatrixXd a(keep.size(), 6);
+    Eigen::VectorXd rhs(keep.size());
+    for (size_t k = 0; k < keep.size(); ++k) {
+      double b[6];
+      basis(keep[k], b);
+      for (int c = 0; c < 6; ++c) a(k, c) = b[c];
+      rhs(k) = shadow.data()[keep[k]];
+    }
+    coef = a.colPivHouseholderQr().solve(rhs);
+    std::vector<double> residuals(keep.size());
+    for (size_t k = 0; k < keep.size(); ++k) residuals[k] = rhs(k) - a.row(k).dot(coef);
+    std::vector<double> abs_res(residuals.size());
+    for (size_t k = 0; k < residuals.size(); ++k) abs_res[k] = std::abs(residuals[k]);
+    std::nth_element(abs_res.begin(), abs_res.begin() + abs_res.size() / 2, abs_res.end());
+    const double sigma = 1.4826 * abs_res[abs_res.size() / 2];
+    std::vector<int> next;
+    for (int i = 0; i < w * h; ++i) {
+      if (!usable[i]) continue;
+      double b[6];
+      basis(i, b);
+      double fit = 0;
+      for (int c = 0; c < 6; ++c) fit += b[c] * coef(c);
+      if (shadow.data()[i] >= fit - 2.5 * sigma) next.push_back(i);
+    }
+    if (next.size() == keep.size()) break;
+    keep.swap(next);
+  }
+  if (keep.size() < total / 10) {
+    return Status::Error("auto reference: fewer than 10% of the pixels look clean (" + std::to_string(keep.size()) +
+                         " of " + std::to_string(total) + "); capture a reference frame of clean glass");
+  }
+  *reference = Image(w, h);
+  for (int i = 0; i < w * h; ++i) {
+    double b[6];
+    basis(i, b);
+    double fit = 0;
+    for (int c = 0; c < 6; ++c) fit += b[c] * coef(c);
+    reference->data()[i] = static_cast<float>(fit);
+  }
+  return Status::Ok();
+}
+
+double Median(std::vector<float> values) {
+  if (values.empty()) return 0;
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2];
+}
+
+}  // namespace
+
+Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, TauMaps* maps,
+              TauFitSummary* summary) {
+  const auto t_start = Clock::now();
+  *summary = TauFitSummary();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  const int w = data.shadow.width(), h = data.shadow.height();
+  const size_t n = static_cast<size_t>(w) * h;
+  summary->width = w;
+  summary->height = h;
+  summary->pixels_total = static_cast<int64_t>(n);
+  if (n == 0) return Status::Error("FitTau: empty shadow map");
+
+  // Masks and the reference.
+  std::vector<uint8_t> status(n, static_cast<uint8_t>(TauPixelStatus::kOk));
+  for (size_t i = 0; i < n; ++i) {
+    if (data.outside.data()[i] > 0) {
+      status[i] = static_cast<uint8_t>(TauPixelStatus::kOutside);
+    } else if (data.saturated.data()[i] > 0) {
+      status[i] = static_cast<uint8_t>(TauPixelStatus::kSaturated);
+    }
+  }
+  Image reference;
+  if (options.reference == "frame") {
+    if (data.reference.empty()) {
+      return Status::Error("FitTau: TauFitOptions::reference = 'frame' but the session has no 'reference' frames; "
+                           "capture clean glass or use reference 'auto'");
+    }
+    reference = data.reference;
+  } else {
+    std::vector<uint8_t> usable(n);
+    for (size_t i = 0; i < n; ++i) usable[i] = status[i] == 0 && data.shadow.data()[i] > 0;
+    THINSLAB_RETURN_IF_ERROR(FitAutoReference(data.shadow, usable, &reference));
+  }
+  std::vector<float> ref_values;
+  for (size_t i = 0; i < n; ++i) {
+    if (status[i] == 0) ref_values.push_back(reference.data()[i]);
+  }
+  const double ref_median = Median(ref_values);
+  if (!(ref_median > 0)) {
+    return Status::Error("FitTau: the reference has no signal (median " + std::to_string(ref_median) +
+                         " DN/us over unmasked pixels)");
+  }
+  std::vector<double> m(n, 1.0), sigma_m(n, 1.0);
+  const double min_ratio = std::exp(-options.tau_max);
+  for (size_t i = 0; i < n; ++i) {
+    if (status[i] != 0) continue;
+    const double r = reference.data()[i], s = data.shadow.data()[i];
+    if (!(r > options.min_reference_fraction * ref_median)) {
+      status[i] = static_cast<uint8_t>(TauPixelStatus::kDark);
+      continue;
+    }
+    m[i] = s / r;
+    double var_s = data.shadow_variance.empty() ? 0 : data.shadow_variance.data()[i];
+    double var_r = (options.reference == "frame" && !data.reference_variance.empty()) ? data.reference_variance.data()[i] : 0;
+    const double var_m = (var_s + Sqr(m[i]) * var_r) / Sqr(r);
+    sigma_m[i] = std::max(std::sqrt(var_m), 1e-4);
+    // Signal indistinguishable from zero: cannot be measured.
+    if (s <= 2.0 * std::sqrt(var_s) && s < min_ratio * r) status[i] = static_cast<uint8_t>(TauPixelStatus::kDark);
+  }
+
+  // Plain estimate, Gu et al. 2007 Eq. 7: tau = -ln(I / I_clean).
+  Image tau_plain(w, h);
+  for (size_t i = 0; i < n; ++i) {
+    if (status[i] != 0) continue;
+    tau_plain.data()[i] = static_cast<float>(m[i] > min_ratio ? -std::log(m[i]) : options.tau_max);
+  }
+  const auto t_plain = Clock::now();
+  summary->plain_s = Seconds(t_start, t_plain);
+
+  std::vector<double> tau(n, 0.0);
+  for (size_t i = 0; i < n; ++i) tau[i] = tau_plain.data()[i];
+  std::vector<double> scattered(n, 0.0);
+  if (options.refine_scattering && options.layer_albedo > 0) {
+    BoardGeometry geometry;
+    geometry.distance_m = data.board_distance_m;
+    geometry.pixel_pitch_m = data.pixel_pitch_m;
+    geometry.max_angle_deg = options.kernel_max_angle_deg;
+    geometry.max_radius_px = static_cast<int>(std::ceil(std::hypot(w, h)));
+    std::vector<double> nodes;
+    for (double t : ScatterKernelBank::DefaultNodes()) {
+      nodes.push_back(t);
+      if (t >= options.tau_max) break;
+    }
+    const double albedo = options.layer_albedo, g = options.layer_g;
+    // Gu et al. 2007, Eq. 6 with mu'_i = 1, divided by tau (its limit at tau = 0).
+    const ScatterKernelBank bank(nodes, [&](double t, double mu) {
+      if (t < 1e-9) return albedo * HenyeyGreenstein(mu, g) / mu;
+      return LayerSingleScatterRadiance(t, mu, albedo, g) / t;
+    }, geometry);
+    // Incident light proxy: the reference (E0 times the board-to-camera factor, which varies
+    // slowly compared with the scattering kernel). Unmeasured pixels emit with the median.
+    Image e0(w, h), tau_image(w, h);
+    for (size_t i = 0; i < n; ++i) {
+      e0.data()[i] = status[i] == static_cast<uint8_t>(TauPixelStatus::kOutside) ? static_cast<float>(ref_median)
+                                                                                  : reference.data()[i];
+    }
+    std::vector<int> index_of(n, -1);
+    int num_params = 0;
+    for (size_t i = 0; i < n; ++i) {
+      if (status[i] == 0) index_of[i] = num_params++;
+    }
+    for (int outer = 0; outer < options.max_outer_iterations; ++outer) {
+      for (size_t i = 0; i < n; ++i) tau_image.data()[i] = static_cast<float>(std::clamp(tau[i], 0.0, options.tau_max));
+      const Image s_board = bank.Scattered(e0, tau_image);
+      for (size_t i = 0; i < n; ++i) scattered[i] = s_board.data()[i] / e0.data()[i];
+      std::vector<double> next = tau;
+      if (options.smoothness_sigma_tau <= 0) {
+        for (size_t i = 0; i < n; ++i) {
+          if (status[i] != 0) continue;
+          const double d = m[i] - scattered[i];
+          next[i] = d > min_ratio ? -std::log(d) : options.tau_max;
+        }
+      } else {
+        ceres::Problem::Options problem_options;
+        problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+        problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+        ceres::Problem problem(problem_options);
+        for (size_t i = 0; i < n; ++i) {
+          if (status[i] != 0) continue;
+          problem.AddResidualBlock(ShadowAttenuationCost::Create(m[i] - scattered[i], sigma_m[i]), nullptr, &next[i]);
+          problem.SetParameterLowerBound(&next[i], 0, -1.0);
+          problem.SetParameterUpperBound(&next[i], 0, options.tau_max);
+        }
+        for (int y = 0; y < h; ++y) {
+          for (int x = 0; x < w; ++x) {
+            const size_t i = static_cast<size_t>(y) * w + x;
+            if (status[i] != 0) continue;
+            if (x + 1 < w && status[i + 1] == 0) {
+              problem.AddResidualBlock(TauSmoothnessCost::Create(options.smoothness_sigma_tau),
+                                       new ceres::HuberLoss(1.0), &next[i], &next[i + 1]);
+            }
+            if (y + 1 < h && status[i + w] == 0) {
+              problem.AddResidualBlock(TauSmoothnessCost::Create(options.smoothness_sigma_tau),
+                                       new ceres::HuberLoss(1.0), &next[i], &next[i + w]);
+            }
+          }
+        }
+        ceres::Solver::Options solver_options;
+        solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+        solver_options.max_num_iterations = 25;
+        solver_options.num_threads = options.num_threads;
+        solver_options.function_tolerance = 1e-8;
+        solver_options.logging_type = ceres::SILENT;
+        ceres::Solver::Summary ceres_summary;
+        if (num_params > 0) ceres::Solve(solver_options, &problem, &ceres_summary);
+        if (num_params > 0 && ceres_summary.termination_type == ceres::FAILURE) {
+          summary->result = TauFitSummary::Result::kFailure;
+          summary->message = "Ceres failed: " + ceres_summary.message;
+          return Status::Error("FitTau: " + summary->message);
+        }
+      }
+      double max_update = 0;
+      for (size_t i = 0; i < n; ++i) {
+        if (status[i] == 0) max_update = std::max(max_update, std::abs(next[i] - tau[i]));
+      }
+      tau.swap(next);
+      summary->outer_iterations = outer + 1;
+      summary->final_max_update_tau = max_update;
+      if (max_update < options.outer_tolerance_tau) break;
+    }
+  }
+  const auto t_refine = Clock::now();
+  summary->refine_s = Seconds(t_plain, t_refine);
+
+  // Outputs, counts and residuals.
+  maps->tau = Image(w, h, {"tau", "tau_plain", "status"});
+  double sum_sq = 0, sum_scatter = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
+    uint8_t code = status[i];
+    double value = 0, plain = 0;
+    if (code == 0) {
+      value = tau[i];
+      plain = tau_plain.data()[i];
+      if (value >= options.tau_max - 1e-9) code = static_cast<uint8_t>(TauPixelStatus::kClamped);
+      const double model = std::exp(-value) + scattered[i];
+      sum_sq += Sqr((m[i] - model) / sigma_m[i]);
+      sum_scatter += scattered[i] / std::max(m[i], 1e-6);
+    }
+    switch (static_cast<TauPixelStatus>(code)) {
+      case TauPixelStatus::kOk: ++summary->pixels_fitted; break;
+      case TauPixelStatus::kDark: ++summary->pixels_dark; break;
+      case TauPixelStatus::kSaturated: ++summary->pixels_saturated; break;
+      case TauPixelStatus::kOutside: ++summary->pixels_outside; break;
+      case TauPixelStatus::kClamped: ++summary->pixels_clamped; value = plain = options.tau_max; break;
+    }
+    CHECK(std::isfinite(value) && std::isfinite(plain));
+    maps->tau.at(x, y, 0) = static_cast<float>(value);
+    maps->tau.at(x, y, 1) = static_cast<float>(plain);
+    maps->tau.at(x, y, 2) = static_cast<float>(code);
+  }
+  const int64_t measured = summary->pixels_fitted + summary->pixels_clamped;
+  summary->rms_normalized_residual = measured > 0 ? std::sqrt(sum_sq / measured) : 0;
+  summary->mean_scattered_fraction = measured > 0 ? sum_scatter / measured : 0;
+  summary->total_s = Seconds(t_start, Clock::now());
+  if (summary->pixels_fitted == 0) {
+    summary->result = TauFitSummary::Result::kFailure;
+    summary->message = "no pixel could be fitted (all masked: dark, saturated or outside the camera view)";
+    return Status::Error("FitTau: " + summary->message);
+  }
+  summary->result = TauFitSummary::Result::kSuccess;
+  summary->message = "ok";
+  return Status::Ok();
+}
+
+}  // namespace thinslab

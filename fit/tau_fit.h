@@ -1,0 +1,84 @@
+// SPDX-License-Identifier: Apache-2.0
+// Optical thickness map tau(x, y) from shadow maps (Gu et al. 2007, Sec. 5.1).
+//
+// Plain estimate, Gu Eq. 7: tau = -ln(I / I_clean). It is biased low wherever light the
+// layer scatters forward (Eq. 6) lands near the unscattered light. The refinement models that
+// light: with m = I / I_clean and S[tau] the Eq. 6 light from the whole layer on the board
+// (optics/shadow_map_model.h) divided by I_clean, it solves
+//   m = e^{-tau} + S[tau]
+// by fixed-point iteration on S (S is a contraction: the layer scatters at most albedo of
+// what it removes) and, in each iteration, a Ceres solve of the per-pixel Eq. 5 residuals
+// with an edge-preserving (Huber) smoothness prior between neighbours.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "calib/shadow_map_preparation.h"
+#include "core/image.h"
+#include "core/status.h"
+
+namespace thinslab {
+
+// Per-pixel status codes written to the "status" channel (docs/format.md).
+enum class TauPixelStatus : uint8_t {
+  kOk = 0,
+  kDark = 1,        // Reference or shadow signal too low to measure.
+  kSaturated = 2,   // A contributing raw pixel saturated.
+  kOutside = 3,     // Board point not seen by the camera.
+  kClamped = 4,     // Transmission below e^{-tau_max}: tau set to tau_max.
+};
+
+struct TauFitOptions {
+  // Model the scattered light (Eq. 6) instead of plain Eq. 7.
+  bool refine_scattering = true;
+  // Layer single-scattering albedo omega0 and HG g (unitless); given, e.g. from a laser-lobe
+  // fit (Gu Eq. 8) or the category ranges of Gu Fig. 2.
+  double layer_albedo = 0.3;
+  double layer_g = 0.8;
+  // "frame": the clean reference frames; "auto": a smooth (quadratic) surface fitted to the
+  // automatically found clean regions of the shadow frame.
+  std::string reference = "frame";
+  // Largest representable tau; darker pixels are clamped and flagged.
+  double tau_max = 4.0;
+  // Pixels whose reference is below this fraction of the median reference are dark.
+  double min_reference_fraction = 0.1;
+  // Standard deviation (in tau) of neighbour differences under the smoothness prior, beyond
+  // which the Huber loss turns linear. 0 disables the prior (closed-form per-pixel update).
+  double smoothness_sigma_tau = 0.1;
+  int max_outer_iterations = 15;
+  double outer_tolerance_tau = 2e-4;  // Stop when no pixel's tau moves more than this.
+  double kernel_max_angle_deg = 80;   // Scattered light beyond this angle is neglected.
+  int num_threads = 2;
+
+  bool Check(std::string* error) const;
+};
+
+struct TauMaps {
+  Image tau;        // Channels: tau, tau_plain, status.
+};
+
+struct TauFitSummary {
+  enum class Result { kNotRun, kSuccess, kFailure };
+  Result result = Result::kNotRun;
+  std::string message = "FitTau was not called.";
+  int width = 0, height = 0;
+  int64_t pixels_total = 0, pixels_fitted = 0, pixels_dark = 0, pixels_saturated = 0,
+          pixels_outside = 0, pixels_clamped = 0;
+  int outer_iterations = 0;
+  double final_max_update_tau = 0;
+  double rms_normalized_residual = 0;  // RMS of (m - model) / sigma_m over fitted pixels.
+  double mean_scattered_fraction = 0;  // Mean S / m over fitted pixels.
+  double plain_s = 0, refine_s = 0, total_s = 0;
+
+  bool IsUsable() const { return result == Result::kSuccess; }
+  std::string BriefReport() const;
+  std::string FullReport() const;
+};
+
+// Fills maps->tau (width x height of the rectified grid). Never writes NaN: pixels that
+// cannot be measured get tau = 0 (or tau_max when clamped) and a status code.
+Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, TauMaps* maps,
+              TauFitSummary* summary);
+
+}  // namespace thinslab

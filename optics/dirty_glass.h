@@ -1,0 +1,42 @@
+// SPDX-License-Identifier: Apache-2.0
+// The contaminant layer of Gu, Ramamoorthi, Belhumeur and Nayar 2007, "Dirty Glass:
+// Rendering Contamination on Transparent Surfaces", for light at normal incidence from the
+// glass side through a layer whose index matches air (dust, n2 = n1), which is the
+// shadow-map and laser geometry of Sec. 5 (Fig. 9). Fresnel factors T12 T23 are 1 here and
+// the glass transmittance cancels in every ratio to a clean-glass reference.
+#pragma once
+
+#include <cmath>
+
+#include "optics/henyey_greenstein.h"
+
+namespace thinslab {
+
+// Gu et al. 2007, Eq. 5 with mu'_i = 1: unscattered (reduced) transmittance e^{-tau}.
+template <typename T>
+T LayerDirectTransmittance(const T& tau) {
+  using std::exp;
+  return exp(-tau);
+}
+
+// Gu et al. 2007, Eq. 6 with mu'_i = 1: single-scattered radiance leaving the layer at
+// angle theta from the normal (mu = cos theta > 0), per unit incident irradiance [1/sr]:
+//   L / E_i = omega0 p(theta; g) (e^{-tau} - e^{-tau/mu}) / (1 - mu).
+// The (e^{-tau} - e^{-tau/mu}) / (1 - mu) factor tends to tau e^{-tau} as mu -> 1; it is
+// evaluated as e^{-tau} (1 - e^{-tau s}) / (mu s) with s = 1/mu - 1 to avoid cancellation.
+template <typename T>
+T LayerSingleScatterRadiance(const T& tau, const T& mu, const T& albedo, const T& g) {
+  using std::exp;
+  using std::expm1;
+  const T s = T(1) / mu - T(1);
+  T path_factor;
+  if (s < T(1e-8)) {
+    path_factor = tau * exp(-tau) / mu;
+  } else {
+    path_factor = -exp(-tau) * expm1(-tau * s) / (mu * s);
+  }
+  // Scattering angle between the incident direction (along -z) and the exit direction.
+  return albedo * HenyeyGreenstein(mu, g) * path_factor;
+}
+
+}  // namespace thinslab

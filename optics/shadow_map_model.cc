@@ -1,0 +1,124 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "optics/shadow_map_model.h"
+
+#include <glog/logging.h>
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/math.h"
+
+namespace thinslab {
+
+Image BuildBoardKernel(const std::function<double(double mu)>& radiance, const BoardGeometry& geometry) {
+  CHECK_GT(geometry.distance_m, 0);
+  CHECK_GT(geometry.pixel_pitch_m, 0);
+  const double d_px = geometry.distance_m / geometry.pixel_pitch_m;
+  int radius = static_cast<int>(std::ceil(d_px * std::tan(geometry.max_angle_deg * kPi / 180.0)));
+  if (geometry.max_radius_px > 0) radius = std::min(radius, geometry.max_radius_px);
+  radius = std::max(radius, 1);
+  const int size = 2 * radius + 1;
+  Image kernel(size, size);
+  const double mu_min = std::cos(geometry.max_angle_deg * kPi / 180.0);
+  // Source and board pixels are both boxes: average over n x n sub-positions of each where the
+  // lobe changes within a pixel (near the centre), a single sample further out.
+  const double near_radius_px = std::max(6.0, 0.5 * d_px);
+  auto lobe = [&](double dx_px, double dy_px) {
+    const double r2 = Sqr(dx_px) + Sqr(dy_px);
+    const double mu = d_px / std::sqrt(Sqr(d_px) + r2);
+    if (mu < mu_min) return 0.0;
+    // Irradiance per unit incident irradiance: A_px L mu^4 / D^2 with A_px / D^2 = 1 / d_px^2.
+    return radiance(mu) * Sqr(Sqr(mu)) / Sqr(d_px);
+  };
+  for (int j = -radius; j <= radius; ++j) {
+    for (int i = -radius; i <= radius; ++i) {
+      double value = 0;
+      if (std::hypot(i, j) < near_radius_px) {
+        const int n = 4;
+        for (int a = 0; a < n; ++a) {
+          for (int b = 0; b < n; ++b) {
+            for (int c = 0; c < n; ++c) {
+              for (int d = 0; d < n; ++d) {
+                value += lobe(i + (a - b) / static_cast<double>(n), j + (c - d) / static_cast<double>(n));
+              }
+            }
+          }
+        }
+        value /= n * n * n * n;
+      } else {
+        value = lobe(i, j);
+      }
+      kernel.at(i + radius, j + radius) = static_cast<float>(value);
+    }
+  }
+  return kernel;
+}
+
+ScatterKernelBank::ScatterKernelBank(const std::vector<double>& tau_nodes,
+                                     const std::function<double(double tau, double mu)>& radiance_per_tau,
+                                     const BoardGeometry& geometry)
+    : nodes_(tau_nodes) {
+  CHECK_GE(nodes_.size(), 2u);
+  CHECK(std::is_sorted(nodes_.begin(), nodes_.end()));
+  for (double t : nodes_) {
+    kernels_.push_back(BuildBoardKernel([&](double mu) { return radiance_per_tau(t, mu); }, geometry));
+  }
+}
+
+std::vector<double> ScatterKernelBank::DefaultNodes(double spacing_scale) {
+  std::vector<double> nodes;
+  const double fine = 0.1 * spacing_scale, coarse = 0.25 * spacing_scale;
+  for (double t = 0; t < 1.5 - 1e-9; t += fine) nodes.push_back(t);
+  for (double t = 1.5; t < 3.0 - 1e-9; t += coarse) nodes.push_back(t);
+  nodes.push_back(3.0);
+  nodes.push_back(4.0);
+  nodes.push_back(6.0);
+  return nodes;
+}
+
+Image ScatterKernelBank::Scattered(const Image& e0, const Image& tau) const {
+  CHECK_EQ(e0.width(), tau.width());
+  CHECK_EQ(e0.height(), tau.height());
+  const int w = tau.width(), h = tau.height();
+  cv::Mat total = cv::Mat::zeros(h, w, CV_32F);
+  const int n = static_cast<int>(nodes_.size());
+  for (int j = 0; j < n; ++j) {
+    // Source strength for node j: E0 tau w_j(tau), hat weights on the node grid; tau beyond
+    // the last node uses the last kernel.
+    cv::Mat source = cv::Mat::zeros(h, w, CV_32F);
+    bool any = false;
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const double t = std::max(0.0, static_cast<double>(tau.at(x, y)));
+        double weight = 0;
+        if (j == n - 1 && t >= nodes_[j]) {
+          weight = 1;
+        } else if (j > 0 && t >= nodes_[j - 1] && t < nodes_[j]) {
+          weight = (t - nodes_[j - 1]) / (nodes_[j] - nodes_[j - 1]);
+        } else if (j < n - 1 && t >= nodes_[j] && t < nodes_[j + 1]) {
+          weight = (nodes_[j + 1] - t) / (nodes_[j + 1] - nodes_[j]);
+        }
+        if (weight > 0) {
+          source.at<float>(y, x) = static_cast<float>(e0.at(x, y) * t * weight);
+          any = true;
+        }
+      }
+    }
+    if (!any) continue;
+    const Image& k = kernels_[j];
+    cv::Mat kernel(k.height(), k.width(), CV_32F, const_cast<float*>(k.data().data()));
+    cv::Mat out;
+    // The kernel is point-symmetric, so correlation (filter2D) equals convolution.
+    cv::filter2D(source, out, CV_32F, kernel, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
+    total += out;
+  }
+  Image result(w, h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) result.at(x, y) = total.at<float>(y, x);
+  }
+  return result;
+}
+
+}  // namespace thinslab
