@@ -75,7 +75,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
     return Status::Error(msg.str());
   }
   TauMaps maps;
-  THINSLAB_RETURN_IF_ERROR(FitTau(run.fit, data, &maps, summary));
+  THINSLAB_RETURN_IF_ERROR(FitTau(run.fit, data, &maps, summary).WithContext(session_dir));
 
   StagedDirectory out(out_dir);
   THINSLAB_RETURN_IF_ERROR(out.Init());
@@ -97,7 +97,8 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   FalseColorOptions color;
   color.label = "tau";
   color.max_value = 1.5;
-  for (float v : tau.Channel(0).data()) color.max_value = std::max(color.max_value, static_cast<double>(v));
+  const Image tau_only = tau.Channel(0);
+  for (float v : tau_only.data()) color.max_value = std::max(color.max_value, static_cast<double>(v));
   color.max_value = std::min(color.max_value, run.fit.tau_max);
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_falsecolor.png"), tau, 0, &status, color));
   color.label = "tau Eq.7";

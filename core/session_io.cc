@@ -3,15 +3,20 @@
 // description of session.json and of the frame files; keep the two in step.
 #include "core/session_io.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <iomanip>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -983,6 +988,38 @@ std::string SummarizeSession(const Session& session) {
   return out.str();
 }
 
+namespace {
+
+// libpng prints decode errors ("libpng error: Read Error") on stderr itself before OpenCV
+// returns an empty image; thinslab reports the failure once, through Status, naming the file.
+class ScopedSilenceStderr {
+ public:
+  ScopedSilenceStderr() : lock_(Mutex()) {
+    std::fflush(stderr);
+    saved_ = ::dup(STDERR_FILENO);
+    const int null_fd = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+    if (saved_ >= 0 && null_fd >= 0) ::dup2(null_fd, STDERR_FILENO);
+    if (null_fd >= 0) ::close(null_fd);
+  }
+  ~ScopedSilenceStderr() {
+    std::fflush(stderr);
+    if (saved_ >= 0) {
+      ::dup2(saved_, STDERR_FILENO);
+      ::close(saved_);
+    }
+  }
+
+ private:
+  static std::mutex& Mutex() {
+    static std::mutex mutex;
+    return mutex;
+  }
+  std::lock_guard<std::mutex> lock_;
+  int saved_ = -1;
+};
+
+}  // namespace
+
 Status LoadFrame(const std::string& session_dir, const Session& session, const FrameRecord& frame,
                  Image* image_dn) {
   const std::string manifest = ManifestPath(session_dir);
@@ -1047,6 +1084,7 @@ Status LoadFrame(const std::string& session_dir, const Session& session, const F
   }
   cv::Mat m;
   try {
+    ScopedSilenceStderr silence;
     m = cv::imread(path, cv::IMREAD_UNCHANGED);
   } catch (const std::exception& e) {
     return Status::Error(path + ": cannot decode image (corrupt or truncated?): " + e.what());

@@ -1,0 +1,218 @@
+// SPDX-License-Identifier: Apache-2.0
+// Bad input through the real `thinslab` binary: each case must exit non-zero with one line
+// naming the file and field, and must leave no output (complete or partial) behind.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "core/image.h"
+#include "core/session_io.h"
+#include "tests/testing/temp_dir.h"
+
+namespace thinslab {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string output;
+};
+
+RunResult RunThinslab(const std::string& args) {
+  const char* bin_dir = std::getenv("THINSLAB_BINARY_DIR");
+  const std::string binary = std::string(bin_dir ? bin_dir : ".") + "/app/thinslab";
+  const std::string command = binary + " " + args + " 2>&1";
+  RunResult result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return result;
+  std::array<char, 4096> buffer;
+  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.output += buffer.data();
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+int CountLines(const std::string& text) {
+  int lines = 0;
+  for (char c : text) lines += c == '\n';
+  return lines;
+}
+
+class CliBadInputTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir();
+    // A small valid capture: 40x40 layer, 320x240 camera, 2 frames per state.
+    ASSERT_EQ(RunThinslab("sim pattern " + *dir_ / "small.exr" + " --width-px 40 --height-px 40").exit_code, 0);
+    const RunResult sim = RunThinslab("sim shadow-maps " + *dir_ / "base" + " --tau " + *dir_ / "small.exr" +
+                                      " --camera-width-px 320 --camera-height-px 240 --photons 20000 --frames 2"
+                                      " --dark-frames 1");
+    ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  }
+  static void TearDownTestSuite() { delete dir_; }
+
+  // A fresh copy of the valid capture.
+  std::string CopyBase(const std::string& name) {
+    const std::string target = *dir_ / name;
+    fs::copy(*dir_ / "base", target, fs::copy_options::recursive);
+    return target;
+  }
+
+  static nlohmann::json ReadManifest(const std::string& session) {
+    std::ifstream in(session + "/session.json");
+    return nlohmann::json::parse(in);
+  }
+  static void WriteManifest(const std::string& session, const nlohmann::json& j) {
+    std::ofstream(session + "/session.json") << j.dump(2);
+  }
+  static std::string FirstFrameOfKind(const nlohmann::json& manifest, const std::string& kind) {
+    for (const auto& f : manifest["frames"]) {
+      if (f["kind"] == kind) return f["file"].get<std::string>();
+    }
+    return "";
+  }
+
+  // Runs `fit tau` and checks: non-zero exit, one line, naming every expected piece, no output.
+  void ExpectFitFails(const std::string& session, const std::vector<std::string>& expected_in_message) {
+    const RunResult result = RunThinslab("fit tau " + session);
+    EXPECT_NE(result.exit_code, 0) << result.output;
+    EXPECT_EQ(CountLines(result.output), 1) << result.output;
+    EXPECT_EQ(result.output.rfind("error: ", 0), 0u) << result.output;
+    for (const auto& piece : expected_in_message) {
+      EXPECT_NE(result.output.find(piece), std::string::npos) << "'" << piece << "' not in: " << result.output;
+    }
+    EXPECT_FALSE(fs::exists(session + "/fit/tau")) << "output left behind";
+    if (fs::exists(session + "/fit")) {
+      for (const auto& entry : fs::directory_iterator(session + "/fit")) {
+        ADD_FAILURE() << "partial output left behind: " << entry.path();
+      }
+    }
+  }
+
+  static TempDir* dir_;
+};
+
+TempDir* CliBadInputTest::dir_ = nullptr;
+
+TEST_F(CliBadInputTest, ValidCaptureFitsAndInfoValidates) {
+  const std::string session = CopyBase("valid");
+  const RunResult info = RunThinslab("info " + session);
+  EXPECT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find("valid: yes"), std::string::npos);
+  const RunResult fit = RunThinslab("fit tau " + session);
+  EXPECT_EQ(fit.exit_code, 0) << fit.output;
+  EXPECT_TRUE(fs::exists(session + "/fit/tau/tau.exr"));
+  EXPECT_TRUE(fs::exists(session + "/fit/tau/tau_falsecolor.png"));
+  EXPECT_GT(fs::file_size(session + "/fit/tau/tau_falsecolor.png"), 1000u);
+  EXPECT_TRUE(fs::exists(session + "/fit/tau/summary.json"));
+  EXPECT_TRUE(fs::exists(session + "/fit/tau/options.ini"));
+}
+
+TEST_F(CliBadInputTest, MissingFrameFile) {
+  const std::string session = CopyBase("missing_frame");
+  const std::string file = FirstFrameOfKind(ReadManifest(session), "shadow");
+  fs::remove(session + "/" + file);
+  ExpectFitFails(session, {file});
+  EXPECT_NE(RunThinslab("info " + session).exit_code, 0);
+}
+
+TEST_F(CliBadInputTest, TruncatedFramePng) {
+  const std::string session = CopyBase("truncated_png");
+  const std::string file = FirstFrameOfKind(ReadManifest(session), "shadow");
+  fs::resize_file(session + "/" + file, 100);
+  ExpectFitFails(session, {file, "corrupt or truncated"});
+}
+
+TEST_F(CliBadInputTest, TruncatedExrTexture) {
+  const std::string exr = *dir_ / "truncated.exr";
+  fs::copy_file(*dir_ / "small.exr", exr, fs::copy_options::overwrite_existing);
+  fs::resize_file(exr, fs::file_size(exr) / 2);
+  const RunResult result = RunThinslab("sim shadow-maps " + *dir_ / "from_truncated" + " --tau " + exr);
+  EXPECT_NE(result.exit_code, 0);
+  EXPECT_EQ(CountLines(result.output), 1) << result.output;
+  EXPECT_NE(result.output.find("truncated.exr"), std::string::npos) << result.output;
+  EXPECT_FALSE(fs::exists(*dir_ / "from_truncated"));
+}
+
+TEST_F(CliBadInputTest, FramesOfDifferentSizes) {
+  const std::string session = CopyBase("different_sizes");
+  const std::string file = FirstFrameOfKind(ReadManifest(session), "reference");
+  ASSERT_TRUE(WriteRawFrame(session + "/" + file, Image(100, 80, 500.0f), 12).ok());
+  ExpectFitFails(session, {file, "100x80", "320x240"});
+}
+
+TEST_F(CliBadInputTest, UnknownFormatVersion) {
+  const std::string session = CopyBase("version");
+  nlohmann::json j = ReadManifest(session);
+  j["format_version"] = "2.0";
+  WriteManifest(session, j);
+  ExpectFitFails(session, {"session.json", "format_version", "2.0"});
+}
+
+TEST_F(CliBadInputTest, WrongJsonType) {
+  const std::string session = CopyBase("wrong_type");
+  nlohmann::json j = ReadManifest(session);
+  j["frames"][2]["exposure_time_us"] = "fast";
+  WriteManifest(session, j);
+  ExpectFitFails(session, {"session.json", "frames[2].exposure_time_us"});
+}
+
+TEST_F(CliBadInputTest, ZeroCameraWidth) {
+  const std::string session = CopyBase("zero_width");
+  nlohmann::json j = ReadManifest(session);
+  j["rig"]["cameras"][0]["width_px"] = 0;
+  WriteManifest(session, j);
+  ExpectFitFails(session, {"session.json", "rig.cameras[0].width_px"});
+}
+
+TEST_F(CliBadInputTest, NegativePixelPitch) {
+  const std::string session = CopyBase("negative_pitch");
+  nlohmann::json j = ReadManifest(session);
+  j["rig"]["sample"]["pixel_pitch_m"] = -1e-4;
+  WriteManifest(session, j);
+  ExpectFitFails(session, {"session.json", "rig.sample.pixel_pitch_m"});
+}
+
+// Shadow frames at zero DN (below the black level): nothing measurable, no NaN map.
+TEST_F(CliBadInputTest, ZeroShadowFrames) {
+  const std::string session = CopyBase("zero_shadow");
+  const nlohmann::json manifest = ReadManifest(session);
+  for (const auto& f : manifest["frames"]) {
+    if (f["kind"] != "shadow") continue;
+    ASSERT_TRUE(WriteRawFrame(session + "/" + f["file"].get<std::string>(), Image(320, 240, 0.0f), 12).ok());
+  }
+  ExpectFitFails(session, {session, "no pixel could be fitted"});
+}
+
+TEST_F(CliBadInputTest, AllSaturatedReference) {
+  const std::string session = CopyBase("saturated_reference");
+  const nlohmann::json manifest = ReadManifest(session);
+  for (const auto& f : manifest["frames"]) {
+    if (f["kind"] != "reference") continue;
+    ASSERT_TRUE(WriteRawFrame(session + "/" + f["file"].get<std::string>(), Image(320, 240, 4095.0f), 12).ok());
+  }
+  ExpectFitFails(session, {session, "saturated", "exposure_time_us"});
+}
+
+TEST_F(CliBadInputTest, BadOptionValue) {
+  const std::string session = CopyBase("bad_option");
+  const RunResult result = RunThinslab("fit tau " + session + " --albedo 1.7");
+  EXPECT_NE(result.exit_code, 0);
+  EXPECT_NE(result.output.find("TauFitOptions::layer_albedo"), std::string::npos) << result.output;
+  const RunResult typo = RunThinslab("fit tau " + session + " --albdo 0.3");
+  EXPECT_NE(typo.exit_code, 0);
+  EXPECT_NE(typo.output.find("--albdo"), std::string::npos) << typo.output;
+  EXPECT_FALSE(fs::exists(session + "/fit/tau"));
+}
+
+}  // namespace
+}  // namespace thinslab
