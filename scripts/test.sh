@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
+# THE test command (README, .ci/run): installs Debian packages, configures, builds, runs every
+# test; then, unless THINSLAB_SKIP_SANITIZERS=1, rebuilds with ASan+UBSan and runs the unit and
+# CLI tests again (the long simulated system test runs in the plain build only).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install_deps.sh
+jobs=$(nproc)
+
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DTHINSLAB_WERROR=ON
+cmake --build build -j"$jobs"
+(cd build && ctest --output-on-failure -j"$jobs")
+
+if [ "${THINSLAB_SKIP_SANITIZERS:-0}" != "1" ]; then
+  cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTHINSLAB_SANITIZE=ON \
+    -DTHINSLAB_BUILD_BENCH=OFF -DTHINSLAB_WERROR=ON
+  cmake --build build-asan -j"$jobs"
+  (cd build-asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+    ctest --output-on-failure -j"$jobs" -E 'e2e')
+fi
+echo "thinslab: all tests passed"
