@@ -82,6 +82,7 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
 
 // Quadratic surface through the clean part of the shadow image: iteratively keeps pixels no
 // more than 2.5 robust sigmas below the current fit (contaminant only darkens, Eq. 5).
+// Not in Gu et al. 2007, which takes I_clean from clean regions by hand.
 Status FitAutoReference(const Image& shadow, const std::vector<uint8_t>& usable, Image* reference) {
   const int w = shadow.width(), h = shadow.height();
   std::vector<int> keep;
@@ -95,7 +96,7 @@ Status FitAutoReference(const Image& shadow, const std::vector<uint8_t>& usable,
     b[0] = 1; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
   };
   Eigen::Matrix<double, 6, 1> coef = Eigen::Matrix<double, 6, 1>::Zero();
-  for (int iteration = 0; iteration < 15; ++iteration) {
+  for (int iteration = 0; iteration < 50; ++iteration) {
     Eigen::MatrixXd a(keep.size(), 6);
     Eigen::VectorXd rhs(keep.size());
     for (size_t k = 0; k < keep.size(); ++k) {
@@ -107,10 +108,15 @@ Status FitAutoReference(const Image& shadow, const std::vector<uint8_t>& usable,
     coef = a.colPivHouseholderQr().solve(rhs);
     std::vector<double> residuals(keep.size());
     for (size_t k = 0; k < keep.size(); ++k) residuals[k] = rhs(k) - a.row(k).dot(coef);
-    std::vector<double> abs_res(residuals.size());
-    for (size_t k = 0; k < residuals.size(); ++k) abs_res[k] = std::abs(residuals[k]);
-    std::nth_element(abs_res.begin(), abs_res.begin() + abs_res.size() / 2, abs_res.end());
-    const double sigma = 1.4826 * abs_res[abs_res.size() / 2];
+    // Noise scale from the positive residuals only: contamination only darkens (Eq. 5), so
+    // the clean pixels' noise shows above the fit, uncontaminated by the shadows below it.
+    std::vector<double> positive;
+    for (double r : residuals) {
+      if (r > 0) positive.push_back(r);
+    }
+    if (positive.empty()) break;
+    std::nth_element(positive.begin(), positive.begin() + positive.size() / 2, positive.end());
+    const double sigma = 1.4826 * positive[positive.size() / 2];
     std::vector<int> next;
     for (int i = 0; i < w * h; ++i) {
       if (!usable[i]) continue;
