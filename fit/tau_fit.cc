@@ -254,51 +254,69 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     for (size_t i = 0; i < n; ++i) {
       if (status[i] == 0) index_of[i] = num_params++;
     }
+    // Ceres problem of the smoothness-prior variant, built once: the data residuals read the
+    // unscattered ratio d_p = m_p - S_p, which each outer iteration updates.
+    std::vector<double> unscattered(n, 1.0);
+    std::vector<double> next = tau;
+    std::unique_ptr<ceres::Problem> problem;
+    if (options.smoothness_sigma_tau > 0 && num_params > 0) {
+      ceres::Problem::Options problem_options;
+      problem_options.enable_fast_removal = false;
+      problem.reset(new ceres::Problem(problem_options));
+      for (size_t i = 0; i < n; ++i) {
+        if (status[i] != 0) continue;
+        problem->AddResidualBlock(ShadowAttenuationCost::Create(&unscattered[i], sigma_m[i]), nullptr, &next[i]);
+        problem->SetParameterLowerBound(&next[i], 0, -1.0);
+        problem->SetParameterUpperBound(&next[i], 0, options.tau_max);
+      }
+      for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+          const size_t i = static_cast<size_t>(y) * w + x;
+          if (status[i] != 0) continue;
+          if (x + 1 < w && status[i + 1] == 0) {
+            problem->AddResidualBlock(TauSmoothnessCost::Create(options.smoothness_sigma_tau),
+                                      new ceres::HuberLoss(1.0), &next[i], &next[i + 1]);
+          }
+          if (y + 1 < h && status[i + w] == 0) {
+            problem->AddResidualBlock(TauSmoothnessCost::Create(options.smoothness_sigma_tau),
+                                      new ceres::HuberLoss(1.0), &next[i], &next[i + w]);
+          }
+        }
+      }
+    }
+    // The fixed point on S first converges with the closed-form per-pixel update (the prior
+    // moves tau little, so S hardly changes); then at most two outer iterations polish with
+    // the Ceres solve of the prior, which costs ~10x a closed-form iteration.
+    bool polishing = false;
+    int polish_iterations = 0;
     for (int outer = 0; outer < options.max_outer_iterations; ++outer) {
       for (size_t i = 0; i < n; ++i) tau_image.data()[i] = static_cast<float>(std::clamp(tau[i], 0.0, options.tau_max));
       const Image s_board = bank.Scattered(e0, tau_image);
-      for (size_t i = 0; i < n; ++i) scattered[i] = s_board.data()[i] / e0.data()[i];
-      std::vector<double> next = tau;
-      if (options.smoothness_sigma_tau <= 0) {
+      for (size_t i = 0; i < n; ++i) {
+        scattered[i] = s_board.data()[i] / e0.data()[i];
+        unscattered[i] = m[i] - scattered[i];
+      }
+      next = tau;
+      if (!polishing) {
         for (size_t i = 0; i < n; ++i) {
           if (status[i] != 0) continue;
-          const double d = m[i] - scattered[i];
-          next[i] = d > min_ratio ? -std::log(d) : options.tau_max;
+          next[i] = unscattered[i] > min_ratio ? -std::log(unscattered[i]) : options.tau_max;
         }
       } else {
-        ceres::Problem::Options problem_options;
-        problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
-        problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
-        ceres::Problem problem(problem_options);
-        for (size_t i = 0; i < n; ++i) {
-          if (status[i] != 0) continue;
-          problem.AddResidualBlock(ShadowAttenuationCost::Create(m[i] - scattered[i], sigma_m[i]), nullptr, &next[i]);
-          problem.SetParameterLowerBound(&next[i], 0, -1.0);
-          problem.SetParameterUpperBound(&next[i], 0, options.tau_max);
-        }
-        for (int y = 0; y < h; ++y) {
-          for (int x = 0; x < w; ++x) {
-            const size_t i = static_cast<size_t>(y) * w + x;
-            if (status[i] != 0) continue;
-            if (x + 1 < w && status[i + 1] == 0) {
-              problem.AddResidualBlock(TauSmoothnessCost::Create(options.smoothness_sigma_tau),
-                                       new ceres::HuberLoss(1.0), &next[i], &next[i + 1]);
-            }
-            if (y + 1 < h && status[i + w] == 0) {
-              problem.AddResidualBlock(TauSmoothnessCost::Create(options.smoothness_sigma_tau),
-                                       new ceres::HuberLoss(1.0), &next[i], &next[i + w]);
-            }
-          }
-        }
+        // The normal equations are a diagonal data term plus a weak grid Laplacian: well
+        // conditioned, so conjugate gradients with a Jacobi preconditioner beat a sparse
+        // Cholesky factorisation (which fills in on a 2-D grid) by far.
         ceres::Solver::Options solver_options;
-        solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-        solver_options.max_num_iterations = 25;
+        solver_options.linear_solver_type = ceres::CGNR;
+        solver_options.preconditioner_type = ceres::JACOBI;
+        solver_options.max_linear_solver_iterations = 50;
+        solver_options.max_num_iterations = 10;
         solver_options.num_threads = options.num_threads;
-        solver_options.function_tolerance = 1e-8;
+        solver_options.function_tolerance = 1e-7;
         solver_options.logging_type = ceres::SILENT;
         ceres::Solver::Summary ceres_summary;
-        if (num_params > 0) ceres::Solve(solver_options, &problem, &ceres_summary);
-        if (num_params > 0 && ceres_summary.termination_type == ceres::FAILURE) {
+        ceres::Solve(solver_options, problem.get(), &ceres_summary);
+        if (ceres_summary.termination_type == ceres::FAILURE) {
           summary->result = TauFitSummary::Result::kFailure;
           summary->message = "Ceres failed: " + ceres_summary.message;
           return Status::Error("FitTau: " + summary->message);
@@ -308,10 +326,16 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       for (size_t i = 0; i < n; ++i) {
         if (status[i] == 0) max_update = std::max(max_update, std::abs(next[i] - tau[i]));
       }
-      tau.swap(next);
+      tau = next;
       summary->outer_iterations = outer + 1;
       summary->final_max_update_tau = max_update;
-      if (max_update < options.outer_tolerance_tau) break;
+      if (polishing) ++polish_iterations;
+      const bool converged = max_update < options.outer_tolerance_tau;
+      if (!polishing && problem && (converged || outer + 3 >= options.max_outer_iterations)) {
+        polishing = true;
+        continue;
+      }
+      if (converged || polish_iterations >= 2) break;
     }
   }
   const auto t_refine = Clock::now();

@@ -45,7 +45,9 @@ struct TauFitOptions {
   double min_reference_fraction = 0.1;
   // Standard deviation (in tau) of neighbour differences under the smoothness prior, beyond
   // which the Huber loss turns linear. 0 disables the prior (closed-form per-pixel update).
-  double smoothness_sigma_tau = 0.1;
+  // Off by default: on the simulated rig it did not lower the error at default or at 10x less
+  // light, and costs 2-4x the time (docs/models/dirty_glass_tau.md has the figures).
+  double smoothness_sigma_tau = 0;
   int max_outer_iterations = 15;
   double outer_tolerance_tau = 2e-4;  // Stop when no pixel's tau moves more than this.
   double kernel_max_angle_deg = 80;   // Scattered light beyond this angle is neglected.

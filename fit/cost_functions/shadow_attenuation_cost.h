@@ -4,7 +4,8 @@
 // where d_p = m_p - S_p is the measured shadow/reference ratio m_p minus the light the
 // current layer estimate scatters onto p (Gu et al. 2007, Eq. 6, summed over the layer), so
 // e^{-tau_p} is the reduced transmission of Eq. 5. sigma_p is the standard deviation of m_p
-// (unitless).
+// (unitless). d_p is read through a pointer because the fixed-point iteration updates it
+// between solves of one problem that is built once.
 #pragma once
 
 #include <ceres/ceres.h>
@@ -13,23 +14,23 @@ namespace thinslab {
 
 class ShadowAttenuationCost {
  public:
-  ShadowAttenuationCost(double unscattered_ratio, double sigma)
+  ShadowAttenuationCost(const double* unscattered_ratio, double sigma)
       : unscattered_ratio_(unscattered_ratio), inv_sigma_(1.0 / sigma) {}
 
   template <typename T>
   bool operator()(const T* const tau, T* residual) const {
     using std::exp;
-    residual[0] = (exp(-tau[0]) - T(unscattered_ratio_)) * T(inv_sigma_);
+    residual[0] = (exp(-tau[0]) - T(*unscattered_ratio_)) * T(inv_sigma_);
     return true;
   }
 
-  static ceres::CostFunction* Create(double unscattered_ratio, double sigma) {
+  static ceres::CostFunction* Create(const double* unscattered_ratio, double sigma) {
     return new ceres::AutoDiffCostFunction<ShadowAttenuationCost, 1, 1>(
         new ShadowAttenuationCost(unscattered_ratio, sigma));
   }
 
  private:
-  double unscattered_ratio_;
+  const double* unscattered_ratio_;
   double inv_sigma_;
 };
 

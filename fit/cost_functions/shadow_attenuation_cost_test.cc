@@ -13,7 +13,8 @@ namespace {
 
 TEST(ShadowAttenuationCost, ZeroAtTrueTauAndGradientMatchesFiniteDifferences) {
   const double tau_true = 0.7;
-  std::unique_ptr<ceres::CostFunction> cost(ShadowAttenuationCost::Create(std::exp(-tau_true), 0.01));
+  const double ratio = std::exp(-tau_true);
+  std::unique_ptr<ceres::CostFunction> cost(ShadowAttenuationCost::Create(&ratio, 0.01));
   double tau = tau_true;
   double* params[] = {&tau};
   double residual = 1;
