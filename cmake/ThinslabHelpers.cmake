@@ -9,6 +9,11 @@ endif()
 
 if(THINSLAB_SANITIZE)
   add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+  # Eigen stops trusting glibc malloc's 16-byte alignment under ASan and switches to its own
+  # aligned allocator; Debian's libceres was built without ASan, so Eigen objects allocated in
+  # it and freed in our code would mismatch. ASan's malloc is 16-byte aligned, so keep the
+  # glibc assumption (EIGEN_DEFAULT_ALIGN_BYTES is 16 without AVX).
+  add_compile_definitions(EIGEN_MALLOC_ALREADY_ALIGNED=1)
   add_link_options(-fsanitize=address,undefined)
 endif()
 
