@@ -11,6 +11,7 @@
 #include <string>
 
 #include "core/file.h"
+#include "tests/testing/temp_dir.h"
 
 namespace thinslab {
 namespace {
@@ -22,15 +23,7 @@ using ::testing::HasSubstr;
 
 class ExrIoTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::string pattern = ::testing::TempDir() + "thinslab_exr_XXXXXX";
-    ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
-    dir_ = pattern;
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
+  void SetUp() override { dir_ = temp_.path(); }
 
   // Three channels with distinct, non-trivial values (including negatives and tiny ones).
   static Image MakeImage(int width, int height) {
@@ -45,6 +38,7 @@ class ExrIoTest : public ::testing::Test {
     return image;
   }
 
+  TempDir temp_;
   std::string dir_;
 };
 

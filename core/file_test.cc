@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "tests/testing/temp_dir.h"
+
 namespace thinslab {
 namespace {
 
@@ -19,15 +21,7 @@ using ::testing::UnorderedElementsAre;
 
 class FileTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::string pattern = ::testing::TempDir() + "thinslab_file_XXXXXX";
-    ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
-    dir_ = pattern;
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
+  void SetUp() override { dir_ = temp_.path(); }
 
   // Names of the entries directly inside `dir`.
   static std::vector<std::string> List(const std::string& dir) {
@@ -45,6 +39,7 @@ class FileTest : public ::testing::Test {
     return bytes;
   }
 
+  TempDir temp_;
   std::string dir_;
 };
 

@@ -27,6 +27,8 @@ packages=(
   libbenchmark-dev
   nlohmann-json3-dev
   openexr
+  gnuplot-nox
+  bc
 )
 
 missing=()
