@@ -3,6 +3,8 @@
 
 #include <sstream>
 
+#include "acquire/capture_with_retries.h"
+
 namespace thinslab {
 
 bool ShadowMapSessionOptions::Check(std::string* error) const {
@@ -21,32 +23,6 @@ bool ShadowMapSessionOptions::Check(std::string* error) const {
   *error = msg.str();
   return false;
 }
-
-namespace {
-
-// Captures one frame, recording failures and retrying up to max_retries times.
-Status CaptureWithRetries(const ShadowMapSessionOptions& options, Camera* camera,
-                          const FrameRecord& templ, SessionWriter* writer) {
-  std::string last_error;
-  for (int attempt = 0; attempt <= options.max_retries; ++attempt) {
-    CapturedFrame frame;
-    const Status status = camera->Capture(&frame);
-    if (!status.ok()) {
-      last_error = status.message();
-      THINSLAB_RETURN_IF_ERROR(writer->AddFailedFrame(templ, last_error));
-      continue;
-    }
-    FrameRecord record = templ;
-    record.exposure_time_us = frame.exposure_time_us;
-    record.timestamp_utc = frame.timestamp_utc;
-    record.status = attempt == 0 ? FrameStatus::kOk : FrameStatus::kRetried;
-    return writer->AddFrame(record, frame.raw_dn);
-  }
-  return Status::Error("camera '" + camera->info().id + "': capture failed " +
-                       std::to_string(options.max_retries + 1) + " times: " + last_error);
-}
-
-}  // namespace
 
 Status RunShadowMapSession(const ShadowMapSessionOptions& options, Camera* camera,
                            Projector* projector, const SampleChanger& change_sample,
@@ -77,7 +53,7 @@ Status RunShadowMapSession(const ShadowMapSessionOptions& options, Camera* camer
       templ.sample_state = step.sample_state;
       templ.exposure_time_us = applied_us;
       templ.light.projector_pattern = step.pattern;
-      THINSLAB_RETURN_IF_ERROR(CaptureWithRetries(options, camera, templ, writer));
+      THINSLAB_RETURN_IF_ERROR(CaptureWithRetries(camera, templ, options.max_retries, writer));
     }
   }
   return projector->ShowPattern("");

@@ -5,7 +5,7 @@
 #include <sstream>
 #include <vector>
 
-#include "core/camera_model.h"
+#include "calib/board_rectification.h"
 #include "core/file.h"
 #include "core/math.h"
 #include "core/session_io.h"
@@ -135,61 +135,28 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   maps->num_shadow_frames = shadow.count;
   maps->num_reference_frames = reference.count;
   maps->num_dark_frames = static_cast<int>(dark_frames.size());
-  maps->shadow = Image(w, h);
-  maps->shadow_variance = Image(w, h);
-  maps->saturated = Image(w, h);
-  maps->outside = Image(w, h);
+  BoardGrid grid;
+  grid.grid_min_m = sample.region_min_m;
+  grid.pixel_pitch_m = p;
+  grid.width_px = w;
+  grid.height_px = h;
+  grid.plane_z_m = -distance;
+  grid.supersample = options.supersample;
+  const BoardRectifier rectifier(camera, grid);
+  maps->outside = rectifier.outside();
+  maps->shadow = rectifier.Rectify(shadow.mean_dn_per_us);
+  // Sub-samples share camera pixels, so the variance of the mean is not divided by their
+  // number: conservatively, the mean of the per-sample variances.
+  maps->shadow_variance = rectifier.Rectify(shadow.variance);
+  Image saturated = shadow.saturated;
   if (reference.count > 0) {
-    maps->reference = Image(w, h);
-    maps->reference_variance = Image(w, h);
-  }
-  const int s = options.supersample;
-  for (int j = 0; j < h; ++j) {
-    for (int i = 0; i < w; ++i) {
-      double acc[4] = {0, 0, 0, 0};
-      bool outside = false, saturated = false;
-      for (int a = 0; a < s && !outside; ++a) {
-        for (int b = 0; b < s && !outside; ++b) {
-          const Eigen::Vector3d x_in_sample(sample.region_min_m.x() + (i + (b + 0.5) / s) * p,
-                                            sample.region_min_m.y() + (j + (a + 0.5) / s) * p, -distance);
-          Eigen::Vector2d uv;
-          if (!ProjectSamplePoint(camera, x_in_sample, &uv) || uv.x() < 0.5 || uv.y() < 0.5 ||
-              uv.x() > camera.width_px - 0.5 || uv.y() > camera.height_px - 0.5) {
-            outside = true;
-            break;
-          }
-          // Area-weighted resampling: each of the n x n sub-samples takes the camera pixel it
-          // falls in, so a rectified pixel averages the camera pixels covering it in proportion
-          // to the covered area (no interpolation blur).
-          const int xx = Clamp(static_cast<int>(uv.x()), 0, camera.width_px - 1);
-          const int yy = Clamp(static_cast<int>(uv.y()), 0, camera.height_px - 1);
-          acc[0] += shadow.mean_dn_per_us.at(xx, yy);
-          acc[1] += shadow.variance.at(xx, yy);
-          if (reference.count > 0) {
-            acc[2] += reference.mean_dn_per_us.at(xx, yy);
-            acc[3] += reference.variance.at(xx, yy);
-          }
-          if (shadow.saturated.at(xx, yy) > 0 || (reference.count > 0 && reference.saturated.at(xx, yy) > 0)) {
-            saturated = true;
-          }
-        }
-      }
-      if (outside) {
-        maps->outside.at(i, j) = 1;
-        continue;
-      }
-      const double n = s * s;
-      maps->shadow.at(i, j) = static_cast<float>(acc[0] / n);
-      // Sub-samples share camera pixels, so the variance of the mean is not divided by n:
-      // conservatively, the mean of the per-sample variances.
-      maps->shadow_variance.at(i, j) = static_cast<float>(acc[1] / n);
-      if (reference.count > 0) {
-        maps->reference.at(i, j) = static_cast<float>(acc[2] / n);
-        maps->reference_variance.at(i, j) = static_cast<float>(acc[3] / n);
-      }
-      maps->saturated.at(i, j) = saturated ? 1.0f : 0.0f;
+    maps->reference = rectifier.Rectify(reference.mean_dn_per_us);
+    maps->reference_variance = rectifier.Rectify(reference.variance);
+    for (size_t i = 0; i < saturated.data().size(); ++i) {
+      if (reference.saturated.data()[i] > 0) saturated.data()[i] = 1;
     }
   }
+  maps->saturated = rectifier.RectifyAny(saturated);
   return Status::Ok();
 }
 

@@ -56,6 +56,19 @@ Image BuildBoardKernel(const std::function<double(double mu)>& radiance, const B
   return kernel;
 }
 
+Image ConvolveZeroPadded(const Image& source, const Image& kernel) {
+  cv::Mat src(source.height(), source.width(), CV_32F, const_cast<float*>(source.data().data()));
+  cv::Mat k(kernel.height(), kernel.width(), CV_32F, const_cast<float*>(kernel.data().data()));
+  cv::Mat out;
+  // The kernel is point-symmetric, so correlation (filter2D) equals convolution.
+  cv::filter2D(src, out, CV_32F, k, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
+  Image result(source.width(), source.height());
+  for (int y = 0; y < result.height(); ++y) {
+    for (int x = 0; x < result.width(); ++x) result.at(x, y) = out.at<float>(y, x);
+  }
+  return result;
+}
+
 ScatterKernelBank::ScatterKernelBank(const std::vector<double>& tau_nodes,
                                      const std::function<double(double tau, double mu)>& radiance_per_tau,
                                      const BoardGeometry& geometry)
@@ -82,43 +95,33 @@ Image ScatterKernelBank::Scattered(const Image& e0, const Image& tau) const {
   CHECK_EQ(e0.width(), tau.width());
   CHECK_EQ(e0.height(), tau.height());
   const int w = tau.width(), h = tau.height();
-  cv::Mat total = cv::Mat::zeros(h, w, CV_32F);
+  Image total(w, h);
   const int n = static_cast<int>(nodes_.size());
   for (int j = 0; j < n; ++j) {
     // Source strength for node j: E0 tau w_j(tau), hat weights on the node grid; tau beyond
     // the last node uses the last kernel.
-    cv::Mat source = cv::Mat::zeros(h, w, CV_32F);
+    Image source(w, h);
     bool any = false;
-    for (int y = 0; y < h; ++y) {
-      for (int x = 0; x < w; ++x) {
-        const double t = std::max(0.0, static_cast<double>(tau.at(x, y)));
-        double weight = 0;
-        if (j == n - 1 && t >= nodes_[j]) {
-          weight = 1;
-        } else if (j > 0 && t >= nodes_[j - 1] && t < nodes_[j]) {
-          weight = (t - nodes_[j - 1]) / (nodes_[j] - nodes_[j - 1]);
-        } else if (j < n - 1 && t >= nodes_[j] && t < nodes_[j + 1]) {
-          weight = (nodes_[j + 1] - t) / (nodes_[j + 1] - nodes_[j]);
-        }
-        if (weight > 0) {
-          source.at<float>(y, x) = static_cast<float>(e0.at(x, y) * t * weight);
-          any = true;
-        }
+    for (size_t i = 0; i < source.num_pixels(); ++i) {
+      const double t = std::max(0.0, static_cast<double>(tau.data()[i]));
+      double weight = 0;
+      if (j == n - 1 && t >= nodes_[j]) {
+        weight = 1;
+      } else if (j > 0 && t >= nodes_[j - 1] && t < nodes_[j]) {
+        weight = (t - nodes_[j - 1]) / (nodes_[j] - nodes_[j - 1]);
+      } else if (j < n - 1 && t >= nodes_[j] && t < nodes_[j + 1]) {
+        weight = (nodes_[j + 1] - t) / (nodes_[j + 1] - nodes_[j]);
+      }
+      if (weight > 0) {
+        source.data()[i] = static_cast<float>(e0.data()[i] * t * weight);
+        any = true;
       }
     }
     if (!any) continue;
-    const Image& k = kernels_[j];
-    cv::Mat kernel(k.height(), k.width(), CV_32F, const_cast<float*>(k.data().data()));
-    cv::Mat out;
-    // The kernel is point-symmetric, so correlation (filter2D) equals convolution.
-    cv::filter2D(source, out, CV_32F, kernel, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
-    total += out;
+    const Image scattered = ConvolveZeroPadded(source, kernels_[j]);
+    for (size_t i = 0; i < total.num_pixels(); ++i) total.data()[i] += scattered.data()[i];
   }
-  Image result(w, h);
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) result.at(x, y) = total.at<float>(y, x);
-  }
-  return result;
+  return total;
 }
 
 }  // namespace thinslab

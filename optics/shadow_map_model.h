@@ -34,6 +34,10 @@ struct BoardGeometry {
 // incident irradiance. Square, odd size, centre = zero offset; entries in units of R.
 Image BuildBoardKernel(const std::function<double(double mu)>& radiance, const BoardGeometry& geometry);
 
+// Zero-padded 2-D convolution of `source` with a point-symmetric, odd-sized `kernel` (same
+// output size as `source`); DFT-based for large kernels.
+Image ConvolveZeroPadded(const Image& source, const Image& kernel);
+
 class ScatterKernelBank {
  public:
   // `radiance_per_tau(t, mu)` must return L(t, mu) / t (and its limit at t = 0).

@@ -42,35 +42,6 @@ bool SimShadowMapOptions::Check(std::string* error) const {
   return false;
 }
 
-class SimShadowMapRig::Cam : public Camera {
- public:
-  explicit Cam(SimShadowMapRig* rig) : rig_(rig), exposure_us_(rig->options_.exposure_time_us) {}
-  const CameraInfo& info() const override { return rig_->rig_.cameras[0]; }
-  Status SetExposure(double requested_us, double* applied_us) override {
-    if (!(requested_us > 0)) return Status::Error("camera 'cam0' (sim): exposure must be > 0 us");
-    // Like real sensors, the sim applies whole microseconds.
-    exposure_us_ = std::max(1.0, std::round(requested_us));
-    *applied_us = exposure_us_;
-    return Status::Ok();
-  }
-  Status Capture(CapturedFrame* frame) override {
-    Image electrons = rig_->RenderElectrons();
-    const double scale = exposure_us_ / rig_->options_.exposure_time_us;
-    for (auto& v : electrons.data()) v = static_cast<float>(v * scale);
-    frame->raw_dn = ApplySensor(electrons, rig_->options_.sensor,
-                                rig_->options_.seed * 1000003ULL + frame_counter_ * 7919ULL + 17);
-    frame->exposure_time_us = exposure_us_;
-    frame->frame_id = frame_counter_++;
-    frame->timestamp_utc = UtcTimestampNow();
-    return Status::Ok();
-  }
-
- private:
-  SimShadowMapRig* rig_;
-  double exposure_us_;
-  uint64_t frame_counter_ = 0;
-};
-
 class SimShadowMapRig::Proj : public Projector {
  public:
   explicit Proj(SimShadowMapRig* rig) : rig_(rig) {}
@@ -163,23 +134,28 @@ Status SimShadowMapRig::Create(const SimShadowMapOptions& options, const Image& 
   rig->board_scattered_ = scattered;
 
   // Camera geometry.
-  CameraInfo cam;
-  cam.id = "cam0";
-  cam.model = "sim";
-  cam.serial = "sim-shadow-0";
-  cam.width_px = options.camera_width_px;
-  cam.height_px = options.camera_height_px;
-  const double tilt = options.camera_tilt_deg * kPi / 180;
-  const Eigen::Vector3d target(0, 0, -options.board_distance_m);
-  const Eigen::Vector3d eye = target + options.camera_distance_m * Eigen::Vector3d(0, -std::sin(tilt), std::cos(tilt));
-  cam.cam_from_sample = LookAt(eye, target, Eigen::Vector3d(0, 1, 0));
-  cam.fx_px = cam.fy_px = options.fill_fraction * cam.width_px * options.camera_distance_m / (gw * p);
-  cam.cx_px = cam.width_px / 2.0 - 0.5;
-  cam.cy_px = cam.height_px / 2.0 - 0.5;
-  cam.bit_depth = options.sensor.bit_depth;
-  cam.black_level_dn = options.sensor.black_level_dn;
-  cam.saturation_dn = options.sensor.saturation_dn();
-  cam.gain_e_per_dn = options.sensor.gain_e_per_dn();
+  SimBoardCameraOptions cam_options;
+  cam_options.info = MakeObliqueBoardCamera(options.camera_width_px, options.camera_height_px,
+                                            Eigen::Vector3d(0, 0, -options.board_distance_m),
+                                            options.camera_distance_m, options.camera_tilt_deg, gw * p,
+                                            options.fill_fraction);
+  cam_options.info.serial = "sim-shadow-0";
+  cam_options.board_z_m = -options.board_distance_m;
+  cam_options.board_albedo = options.board_albedo;
+  cam_options.vignetting = options.vignetting;
+  cam_options.render_supersample = options.render_supersample;
+  // The clean board at the image centre fills reference_fill of the full well at the nominal
+  // exposure.
+  cam_options.electrons_per_radiance_us = options.reference_fill * options.sensor.full_well_e /
+                                          (options.board_albedo / kPi) / options.exposure_time_us;
+  cam_options.initial_exposure_us = options.exposure_time_us;
+  cam_options.sensor = options.sensor;
+  cam_options.seed = options.seed;
+  SimShadowMapRig* raw = rig.get();
+  rig->camera_.reset(new SimBoardCamera(cam_options, [raw](double x, double y) {
+    return raw->pattern_.empty() ? 0.0 : raw->BoardIrradiance(raw->sample_state_, x, y);
+  }));
+  const CameraInfo& cam = rig->camera_->info();
   rig->rig_.cameras = {cam};
   rig->rig_.sample.region_min_m = -half;
   rig->rig_.sample.region_max_m = half;
@@ -194,11 +170,6 @@ Status SimShadowMapRig::Create(const SimShadowMapOptions& options, const Image& 
   rig->rig_.projector.kind = "collimated";
   rig->rig_.projector.direction_in_sample = Eigen::Vector3d(0, 0, -1);
 
-  // Electrons per unit board radiance so the clean board at the image centre fills
-  // reference_fill of the full well at the nominal exposure.
-  rig->electrons_per_radiance_ =
-      options.reference_fill * options.sensor.full_well_e / (options.board_albedo / kPi);
-  rig->camera_.reset(new Cam(rig.get()));
   rig->projector_.reset(new Proj(rig.get()));
   *out = std::move(rig);
   return Status::Ok();
@@ -229,39 +200,6 @@ double SimShadowMapRig::BoardIrradiance(const std::string& sample_state, double 
   if (sample_state != "contaminated") return board_clean_.Bilinear(gx, gy);
   // Unscattered light keeps the texel's sharp edges; scattered light is smooth.
   return board_direct_.at(static_cast<int>(gx), static_cast<int>(gy)) + board_scattered_.Bilinear(gx, gy);
-}
-
-Image SimShadowMapRig::RenderElectrons() const {
-  const CameraInfo& cam = rig_.cameras[0];
-  Image out(cam.width_px, cam.height_px);
-  if (pattern_.empty()) return out;
-  const double r_corner = std::hypot(cam.width_px / 2.0, cam.height_px / 2.0);
-  const Rigid3d sample_from_cam = cam.cam_from_sample.Inverse();
-  const Eigen::Vector3d eye = sample_from_cam.translation;
-  const double z_board = -options_.board_distance_m;
-  const int s = options_.render_supersample;
-  const double radiance_scale = options_.board_albedo / kPi * electrons_per_radiance_;
-  for (int v = 0; v < cam.height_px; ++v) {
-    for (int u = 0; u < cam.width_px; ++u) {
-      double sum = 0;
-      for (int a = 0; a < s; ++a) {
-        for (int b = 0; b < s; ++b) {
-          // thinslab pixel coordinates -> OpenCV (integer centres): subtract 0.5.
-          const double ucv = u + (b + 0.5) / s - 0.5, vcv = v + (a + 0.5) / s - 0.5;
-          const Eigen::Vector3d ray_cam((ucv - cam.cx_px) / cam.fx_px, (vcv - cam.cy_px) / cam.fy_px, 1.0);
-          const Eigen::Vector3d ray = sample_from_cam.rotation * ray_cam;
-          const double t = (z_board - eye.z()) / ray.z();
-          const Eigen::Vector3d hit = eye + t * ray;
-          const double irradiance = BoardIrradiance(sample_state_, hit.x(), hit.y());
-          const double cos_field = 1.0 / ray_cam.norm();
-          sum += irradiance * Sqr(Sqr(cos_field));
-        }
-      }
-      const double r = std::hypot(u + 0.5 - cam.width_px / 2.0, v + 0.5 - cam.height_px / 2.0) / r_corner;
-      out.at(u, v) = static_cast<float>(sum / (s * s) * (1.0 - options_.vignetting * r * r) * radiance_scale);
-    }
-  }
-  return out;
 }
 
 }  // namespace thinslab

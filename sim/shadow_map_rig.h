@@ -18,6 +18,7 @@
 #include "drivers/display.h"
 #include "sim/layer_monte_carlo.h"
 #include "sim/sensor_model.h"
+#include "sim/sim_board_camera.h"
 
 namespace thinslab {
 
@@ -67,10 +68,8 @@ class SimShadowMapRig {
   double BoardIrradiance(const std::string& sample_state, double x_m, double y_m) const;
 
  private:
-  class Cam;
   class Proj;
   SimShadowMapRig() = default;
-  Image RenderElectrons() const;
 
   SimShadowMapOptions options_;
   RigInfo rig_;
@@ -78,10 +77,9 @@ class SimShadowMapRig {
   // Board irradiance split into the unscattered part (piecewise constant per texel: the
   // texture's value is the layer over the texel's whole area) and the smooth scattered part.
   Image e0_, board_clean_, board_direct_, board_scattered_;
-  double electrons_per_radiance_ = 0;
   std::string sample_state_ = "clean";
   std::string pattern_;
-  std::unique_ptr<Cam> camera_;
+  std::unique_ptr<SimBoardCamera> camera_;
   std::unique_ptr<Proj> projector_;
 };
 

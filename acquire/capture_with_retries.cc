@@ -1,0 +1,26 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "acquire/capture_with_retries.h"
+
+namespace thinslab {
+
+Status CaptureWithRetries(Camera* camera, const FrameRecord& templ, int max_retries, SessionWriter* writer) {
+  std::string last_error;
+  for (int attempt = 0; attempt <= max_retries; ++attempt) {
+    CapturedFrame frame;
+    const Status status = camera->Capture(&frame);
+    if (!status.ok()) {
+      last_error = status.message();
+      THINSLAB_RETURN_IF_ERROR(writer->AddFailedFrame(templ, last_error));
+      continue;
+    }
+    FrameRecord record = templ;
+    record.exposure_time_us = frame.exposure_time_us;
+    record.timestamp_utc = frame.timestamp_utc;
+    record.status = attempt == 0 ? FrameStatus::kOk : FrameStatus::kRetried;
+    return writer->AddFrame(record, frame.raw_dn);
+  }
+  return Status::Error("camera '" + camera->info().id + "': capture failed " + std::to_string(max_retries + 1) +
+                       " times: " + last_error);
+}
+
+}  // namespace thinslab

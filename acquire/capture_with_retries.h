@@ -1,0 +1,15 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+
+#include "acquire/session_writer.h"
+#include "drivers/camera.h"
+
+namespace thinslab {
+
+// Captures one frame described by `templ` (camera, kind, sample state, light) and appends it.
+// A failed attempt is recorded as a "failed" frame with the device's message; the frame that
+// finally succeeds is "retried" if any attempt failed. After max_retries + 1 failures the error
+// names the camera and the last device message.
+Status CaptureWithRetries(Camera* camera, const FrameRecord& templ, int max_retries, SessionWriter* writer);
+
+}  // namespace thinslab
