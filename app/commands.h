@@ -6,6 +6,7 @@
 #include <string>
 
 #include "core/status.h"
+#include "fit/phase_fit.h"
 #include "fit/tau_evaluation.h"
 #include "fit/tau_fit.h"
 #include "sim/synthesize_shadow_session.h"
@@ -16,6 +17,8 @@ int RunInfo(int argc, char** argv);
 int RunSim(int argc, char** argv);
 int RunFit(int argc, char** argv);
 int RunDemo(int argc, char** argv);
+int RunFitPhase(int argc, char** argv);
+int RunSimLaser(int argc, char** argv);
 
 // Shared by `fit tau` and `demo`: reads the session, rectifies, fits and writes
 // <out_dir>/{tau.exr, tau_falsecolor.png, tau_plain_falsecolor.png, summary.json, summary.txt,
@@ -29,6 +32,12 @@ struct FitTauRun {
 };
 Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,
                       TauFitSummary* summary, TauComparison* comparison, bool* has_truth);
+
+// `fit phase`: reads a laser-lobe session, fits Gu Eq. 8 and writes <out_dir>/{summary.json,
+// summary.txt, rings.csv, lobe_plot.png, options.ini} atomically.
+Status FitPhasePipeline(const std::string& session_dir, const std::string& out_dir, const PhaseFitOptions& options,
+                        int supersample, const std::string& options_ini, PhaseFitSummary* summary,
+                        std::vector<LaserRing>* rings);
 
 // Adds the sim rig and session options to a parser (used by `sim shadow-maps` and `demo`).
 class OptionParser;

@@ -121,7 +121,8 @@ int RunSim(int argc, char** argv) {
   const std::string what = argc > 0 ? argv[0] : "";
   if (what == "shadow-maps") return RunSimShadowMaps(argc - 1, argv + 1);
   if (what == "pattern") return RunSimPattern(argc - 1, argv + 1);
-  std::cerr << "usage: thinslab sim shadow-maps OUT [options] | thinslab sim pattern OUT [options]\n";
+  if (what == "laser") return RunSimLaser(argc - 1, argv + 1);
+  std::cerr << "usage: thinslab sim shadow-maps OUT | sim laser OUT | sim pattern OUT.exr [options]\n";
   return what.empty() || what == "--help" ? 0 : 2;
 }
 

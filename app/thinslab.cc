@@ -30,8 +30,8 @@ const std::vector<Command>& Commands() {
       {"help", RunHelp, "list the commands"},
       {"version", RunVersion, "print version and git hash"},
       {"info", thinslab::RunInfo, "validate a capture session and summarise it"},
-      {"sim", thinslab::RunSim, "simulate a capture session (sim shadow-maps | sim pattern)"},
-      {"fit", thinslab::RunFit, "fit a model to a capture (fit tau)"},
+      {"sim", thinslab::RunSim, "simulate a capture session (sim shadow-maps | sim laser | sim pattern)"},
+      {"fit", thinslab::RunFit, "fit a model to a capture (fit tau | fit phase)"},
       {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy"},
   };
   return commands;

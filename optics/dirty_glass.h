@@ -39,4 +39,15 @@ T LayerSingleScatterRadiance(const T& tau, const T& mu, const T& albedo, const T
   return albedo * HenyeyGreenstein(mu, g) * path_factor;
 }
 
+// Gu et al. 2007, Eq. 8: laser-lobe profile on the board at angle theta from the beam axis,
+// up to the scale beta (which absorbs omega0, the beam power, the board albedo and the camera):
+//   I(theta) / beta = p(theta; g) (e^{-tau} - e^{-tau/cos theta}) / (1 - cos theta) cos^4 theta,
+// i.e. the single-scattered radiance of Eq. 6 (albedo 1) times cos^4 theta (appendix: board
+// irradiance L cos theta d omega with d omega = dA cos theta / (d / cos theta)^2).
+template <typename T>
+T LaserLobeProfile(const T& cos_theta, const T& g, const T& tau) {
+  const T mu2 = cos_theta * cos_theta;
+  return LayerSingleScatterRadiance(tau, cos_theta, T(1), g) * mu2 * mu2;
+}
+
 }  // namespace thinslab

@@ -1,0 +1,130 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "calib/laser_lobe_preparation.h"
+
+#include <cmath>
+#include <set>
+#include <sstream>
+#include <vector>
+
+#include "calib/board_rectification.h"
+#include "core/file.h"
+#include "core/math.h"
+#include "core/session_io.h"
+
+namespace thinslab {
+
+bool LaserLobePreparationOptions::Check(std::string* error) const {
+  if (supersample < 1 || supersample > 8) {
+    *error = "LaserLobePreparationOptions::supersample = " + std::to_string(supersample) +
+             ". Violated constraint: 1..8";
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+Status MergeAndRectify(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                       const std::vector<const FrameRecord*>& frames, double read_noise_dn,
+                       const BoardRectifier& rectifier, BoardHdr* out) {
+  if (frames.empty()) return Status::Ok();
+  std::vector<Image> images(frames.size());
+  std::vector<HdrFrame> hdr_frames;
+  std::set<double> exposures;
+  for (size_t k = 0; k < frames.size(); ++k) {
+    THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *frames[k], &images[k]));
+    hdr_frames.push_back({&images[k], frames[k]->exposure_time_us});
+    exposures.insert(frames[k]->exposure_time_us);
+  }
+  HdrMergeOptions merge_options;
+  merge_options.saturation_dn = camera.saturation_dn - camera.black_level_dn;
+  merge_options.gain_e_per_dn = camera.gain_e_per_dn;
+  merge_options.read_noise_dn = std::max(read_noise_dn, 0.5);
+  HdrImage hdr;
+  THINSLAB_RETURN_IF_ERROR(MergeExposureBracket(hdr_frames, merge_options, &hdr));
+  out->radiance = rectifier.Rectify(hdr.radiance);
+  out->variance = rectifier.Rectify(hdr.variance);
+  out->all_saturated = rectifier.RectifyAny(hdr.all_saturated);
+  out->num_frames = static_cast<int>(frames.size());
+  out->num_exposures = static_cast<int>(exposures.size());
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
+                        const LaserLobePreparationOptions& options, LaserLobeImages* images) {
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  const std::string manifest = JoinPath(session_dir, kSessionManifestName);
+  if (session.rig.cameras.empty()) return Status::Error(manifest + ": rig.cameras: no camera");
+  if (!session.rig.board.present) {
+    return Status::Error(manifest + ": rig.board: missing; the laser-lobe fit needs the board distance (Gu Eq. 8)");
+  }
+  const CameraInfo& camera = session.rig.cameras[0];
+  auto of_camera = [&](const std::vector<const FrameRecord*>& frames) {
+    std::vector<const FrameRecord*> out;
+    for (const FrameRecord* f : frames) {
+      if (f->camera_id == camera.id) out.push_back(f);
+    }
+    return out;
+  };
+  const auto lobe = of_camera(session.UsableFrames("laser", "contaminated"));
+  if (lobe.empty()) {
+    return Status::Error(manifest + ": frames: no usable frame of kind 'laser' with sample_state 'contaminated'");
+  }
+  std::set<double> lobe_exposures;
+  for (const auto* f : lobe) lobe_exposures.insert(f->exposure_time_us);
+  if (lobe_exposures.size() < 2) {
+    return Status::Error(manifest + ": frames: the 'laser' frames hold a single exposure_time_us (" +
+                         std::to_string(*lobe_exposures.begin()) +
+                         "); the lobe spans many decades and needs an exposure bracket (>= 2 exposures)");
+  }
+  // Read noise from the dark frames' spread around their mean, per exposure group.
+  const auto darks = of_camera(session.UsableFrames("dark"));
+  double read_noise = 1.0;
+  if (!darks.empty()) {
+    double sum = 0, sum_sq = 0;
+    size_t n = 0;
+    for (const FrameRecord* f : darks) {
+      Image dark;
+      THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *f, &dark));
+      for (float v : dark.data()) {
+        sum += v;
+        sum_sq += static_cast<double>(v) * v;
+        ++n;
+      }
+    }
+    const double mean = sum / n;
+    read_noise = std::sqrt(std::max(sum_sq / n - mean * mean, 0.25));
+  }
+  const SampleInfo& sample = session.rig.sample;
+  const double p = sample.pixel_pitch_m;
+  BoardGrid grid;
+  grid.grid_min_m = sample.region_min_m;
+  grid.pixel_pitch_m = p;
+  grid.width_px = static_cast<int>(std::lround((sample.region_max_m.x() - sample.region_min_m.x()) / p));
+  grid.height_px = static_cast<int>(std::lround((sample.region_max_m.y() - sample.region_min_m.y()) / p));
+  grid.plane_z_m = -session.rig.board.distance_m;
+  grid.supersample = options.supersample;
+  if (grid.width_px < 8 || grid.height_px < 8 || static_cast<double>(grid.width_px) * grid.height_px > 1e8) {
+    return Status::Error(manifest + ": rig.sample: region and pixel_pitch_m give a " + std::to_string(grid.width_px) +
+                         "x" + std::to_string(grid.height_px) + " board grid");
+  }
+  const BoardRectifier rectifier(camera, grid);
+  images->outside = rectifier.outside();
+  images->grid_min_m = grid.grid_min_m;
+  images->pixel_pitch_m = p;
+  images->board_distance_m = session.rig.board.distance_m;
+  images->beam_radius_m = session.rig.laser.present ? session.rig.laser.beam_radius_m : 0.0;
+  images->read_noise_dn = read_noise;
+  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, lobe, read_noise, rectifier, &images->lobe));
+  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera,
+                                           of_camera(session.UsableFrames("laser", "clean")), read_noise, rectifier,
+                                           &images->clean));
+  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, of_camera(session.UsableFrames("flat")),
+                                           read_noise, rectifier, &images->flat));
+  return Status::Ok();
+}
+
+}  // namespace thinslab

@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: Apache-2.0
+// Turns a laser-lobe session (acquire/laser_lobe_session.h) into HDR board images: each
+// exposure bracket (flat field, contaminated lobe, clean glass) is merged (calib/hdr_merge.h)
+// and rectified onto the board grid of the manifest's sample region.
+#pragma once
+
+#include <string>
+
+#include "calib/hdr_merge.h"
+#include "core/image.h"
+#include "core/session.h"
+#include "core/status.h"
+
+namespace thinslab {
+
+struct LaserLobePreparationOptions {
+  int supersample = 3;  // Rectification sub-samples per board pixel side.
+  bool Check(std::string* error) const;
+};
+
+struct BoardHdr {
+  Image radiance;       // DN per microsecond, on the board grid.
+  Image variance;
+  Image all_saturated;  // 1 where every exposure saturated.
+  int num_frames = 0;
+  int num_exposures = 0;  // Distinct exposure times.
+  bool empty() const { return num_frames == 0; }
+};
+
+struct LaserLobeImages {
+  BoardHdr lobe;    // Laser on, contaminated sample.
+  BoardHdr clean;   // Laser on, clean glass (optional).
+  BoardHdr flat;    // Board flat field (optional).
+  Image outside;    // 1 where the board pixel is outside the camera view.
+  Eigen::Vector2d grid_min_m = Eigen::Vector2d::Zero();
+  double pixel_pitch_m = 0;
+  double board_distance_m = 0;
+  double beam_radius_m = 0;
+  double read_noise_dn = 0;
+};
+
+Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
+                        const LaserLobePreparationOptions& options, LaserLobeImages* images);
+
+}  // namespace thinslab

@@ -1,0 +1,163 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "core/plot.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/file.h"
+
+namespace thinslab {
+namespace {
+
+cv::Scalar Bgr(int rgb) { return cv::Scalar(rgb & 0xff, (rgb >> 8) & 0xff, (rgb >> 16) & 0xff); }
+
+std::string Format(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.3g", v);
+  return buf;
+}
+
+// "Nice" tick values covering [lo, hi].
+std::vector<double> Ticks(double lo, double hi, int target) {
+  const double span = hi - lo;
+  if (!(span > 0)) return {lo};
+  const double raw = span / target;
+  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
+  double step = mag;
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    if (m * mag >= raw) {
+      step = m * mag;
+      break;
+    }
+  }
+  std::vector<double> ticks;
+  for (double t = std::ceil(lo / step) * step; t <= hi + 1e-9 * span; t += step) ticks.push_back(t);
+  return ticks;
+}
+
+}  // namespace
+
+Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panels, const PlotOptions& options) {
+  if (panels.empty()) return Status::Error(path + ": no panels to plot");
+  const int W = options.width_px, H = options.height_px;
+  cv::Mat canvas(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  const int left = 90, right = 20, top = 40, bottom = 55, gap = 25;
+  double x_lo = 1e300, x_hi = -1e300;
+  for (const auto& panel : panels) {
+    for (const auto& s : panel.series) {
+      for (double x : s.x) {
+        if (std::isfinite(x)) {
+          x_lo = std::min(x_lo, x);
+          x_hi = std::max(x_hi, x);
+        }
+      }
+    }
+  }
+  if (!(x_hi > x_lo)) {
+    x_lo -= 1;
+    x_hi += 1;
+  }
+  double total_weight = 0;
+  for (const auto& panel : panels) total_weight += panel.height_weight;
+  const int plot_h_total = H - top - bottom - gap * static_cast<int>(panels.size() - 1);
+  cv::putText(canvas, options.title, cv::Point(left, 25), cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 0, 0), 1,
+              cv::LINE_AA);
+  int y0 = top;
+  for (size_t pi = 0; pi < panels.size(); ++pi) {
+    const PlotPanel& panel = panels[pi];
+    const int ph = static_cast<int>(plot_h_total * panel.height_weight / total_weight);
+    const cv::Rect box(left, y0, W - left - right, ph);
+    // y range.
+    double y_lo = 1e300, y_hi = -1e300;
+    auto ty = [&](double y) { return panel.log_y ? std::log10(y) : y; };
+    for (const auto& s : panel.series) {
+      for (size_t i = 0; i < s.y.size(); ++i) {
+        const double e = s.y_error.size() == s.y.size() ? s.y_error[i] : 0.0;
+        for (double v : {s.y[i] - e, s.y[i] + e}) {
+          if (panel.log_y && !(v > 0)) continue;
+          if (!std::isfinite(v)) continue;
+          y_lo = std::min(y_lo, ty(v));
+          y_hi = std::max(y_hi, ty(v));
+        }
+      }
+    }
+    if (!(y_hi > y_lo)) {
+      y_lo -= 1;
+      y_hi += 1;
+    }
+    const double pad = 0.05 * (y_hi - y_lo);
+    y_lo -= pad;
+    y_hi += pad;
+    auto px = [&](double x) { return box.x + (x - x_lo) / (x_hi - x_lo) * box.width; };
+    auto py = [&](double y) { return box.y + box.height - (ty(y) - y_lo) / (y_hi - y_lo) * box.height; };
+    // Grid, ticks.
+    for (double t : Ticks(x_lo, x_hi, 8)) {
+      const int x = static_cast<int>(px(t));
+      cv::line(canvas, cv::Point(x, box.y), cv::Point(x, box.y + box.height), cv::Scalar(230, 230, 230));
+      if (pi + 1 == panels.size()) {
+        cv::putText(canvas, Format(t), cv::Point(x - 12, box.y + box.height + 18), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                    cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+      }
+    }
+    std::vector<double> yt;
+    if (panel.log_y) {
+      for (double e = std::floor(y_lo); e <= y_hi; e += 1) {
+        if (e >= y_lo) yt.push_back(std::pow(10.0, e));
+      }
+    } else {
+      yt = Ticks(y_lo, y_hi, 5);
+    }
+    for (double t : yt) {
+      const int y = static_cast<int>(py(t));
+      cv::line(canvas, cv::Point(box.x, y), cv::Point(box.x + box.width, y), cv::Scalar(230, 230, 230));
+      cv::putText(canvas, Format(t), cv::Point(8, y + 4), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1,
+                  cv::LINE_AA);
+    }
+    if (panel.zero_line && !panel.log_y && y_lo < 0 && y_hi > 0) {
+      cv::line(canvas, cv::Point(box.x, static_cast<int>(py(0))), cv::Point(box.x + box.width, static_cast<int>(py(0))),
+               cv::Scalar(120, 120, 120));
+    }
+    cv::rectangle(canvas, box, cv::Scalar(0, 0, 0));
+    cv::putText(canvas, panel.y_label, cv::Point(box.x + 5, box.y + 15), cv::FONT_HERSHEY_SIMPLEX, 0.45,
+                cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
+    // Series.
+    int legend_y = box.y + 15;
+    for (const auto& s : panel.series) {
+      const cv::Scalar color = Bgr(s.color_bgr);
+      std::vector<cv::Point> pts;
+      for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
+        if (panel.log_y && !(s.y[i] > 0)) continue;
+        const cv::Point pt(static_cast<int>(px(s.x[i])), static_cast<int>(py(s.y[i])));
+        if (s.line) {
+          pts.push_back(pt);
+        } else {
+          if (s.y_error.size() == s.y.size()) {
+            const double lo = s.y[i] - s.y_error[i], hi = s.y[i] + s.y_error[i];
+            const int ylo = panel.log_y && !(lo > 0) ? box.y + box.height : static_cast<int>(py(lo));
+            cv::line(canvas, cv::Point(pt.x, ylo), cv::Point(pt.x, static_cast<int>(py(hi))), color);
+          }
+          cv::circle(canvas, pt, 3, color, cv::FILLED, cv::LINE_AA);
+        }
+      }
+      if (s.line && pts.size() > 1) cv::polylines(canvas, pts, false, color, 2, cv::LINE_AA);
+      if (!s.label.empty()) {
+        const int lx = box.x + box.width - 260;
+        cv::line(canvas, cv::Point(lx, legend_y - 4), cv::Point(lx + 20, legend_y - 4), color, 2);
+        cv::putText(canvas, s.label, cv::Point(lx + 26, legend_y), cv::FONT_HERSHEY_SIMPLEX, 0.42,
+                    cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+        legend_y += 17;
+      }
+    }
+    y0 += ph + gap;
+  }
+  cv::putText(canvas, options.x_label, cv::Point(W / 2 - 60, H - 15), cv::FONT_HERSHEY_SIMPLEX, 0.5,
+              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  std::vector<uint8_t> bytes;
+  if (!cv::imencode(".png", canvas, bytes)) return Status::Error(path + ": PNG encoding failed");
+  return WriteFileAtomically(path, std::string(bytes.begin(), bytes.end()));
+}
+
+}  // namespace thinslab

@@ -1,0 +1,399 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "fit/phase_fit.h"
+
+#include <ceres/ceres.h>
+#include <ceres/covariance.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+#include "core/math.h"
+#include "fit/cost_functions/laser_lobe_cost.h"
+#include "optics/dirty_glass.h"
+
+namespace thinslab {
+
+bool PhaseFitOptions::Check(std::string* error) const {
+  std::ostringstream msg;
+  if (!(tau > 0 && tau <= 10)) {
+    msg << "PhaseFitOptions::tau = " << tau << ". Violated constraint: (0, 10]";
+  } else if (tau_free && !(tau_prior_sigma > 0)) {
+    msg << "PhaseFitOptions::tau_prior_sigma = " << tau_prior_sigma << ". Violated constraint: > 0";
+  } else if (!(ring_width_px >= 1)) {
+    msg << "PhaseFitOptions::ring_width_px = " << ring_width_px << ". Violated constraint: >= 1";
+  } else if (!(core_beam_radii >= 1) || !(core_margin_px >= 0)) {
+    msg << "PhaseFitOptions::core_beam_radii = " << core_beam_radii << ", core_margin_px = " << core_margin_px
+        << ". Violated constraint: >= 1 and >= 0";
+  } else if (!(max_theta_deg > 1 && max_theta_deg < 85)) {
+    msg << "PhaseFitOptions::max_theta_deg = " << max_theta_deg << ". Violated constraint: (1, 85)";
+  } else if (min_ring_pixels < 3) {
+    msg << "PhaseFitOptions::min_ring_pixels = " << min_ring_pixels << ". Violated constraint: >= 3";
+  } else if (!(huber_scale > 0)) {
+    msg << "PhaseFitOptions::huber_scale = " << huber_scale << ". Violated constraint: > 0";
+  } else if (!(min_significance > 0)) {
+    msg << "PhaseFitOptions::min_significance = " << min_significance << ". Violated constraint: > 0";
+  } else {
+    return true;
+  }
+  *error = msg.str();
+  return false;
+}
+
+std::string PhaseFitSummary::ResultName() const {
+  switch (result) {
+    case Result::kNotRun: return "not_run";
+    case Result::kSuccess: return "success";
+    case Result::kNoMeasurableScattering: return "no_measurable_scattering";
+    case Result::kFailure: return "failure";
+  }
+  return "unknown";
+}
+
+std::string PhaseFitSummary::BriefReport() const {
+  std::ostringstream out;
+  out.precision(4);
+  out << "FitPhase: " << ResultName();
+  if (result == Result::kSuccess) {
+    out << ", g = " << g << " +- " << sigma_g << ", tau = " << tau << ", " << num_rings << " rings, chi2/dof "
+        << chi2_reduced;
+  }
+  return out.str();
+}
+
+std::string PhaseFitSummary::FullReport() const {
+  std::ostringstream out;
+  out.precision(5);
+  out << BriefReport() << "\nmessage: " << message << "\n"
+      << "g: " << g << " +- " << sigma_g << " (covariance " << sigma_g_covariance << ", jackknife " << sigma_g_jackknife
+      << ", angle-range consistency " << sigma_g_range << ")\n"
+      << "beta: " << beta << " (sigma of log beta " << sigma_log_beta << ")\n"
+      << "tau: " << tau << " +- " << sigma_tau << "\n"
+      << "rings: " << num_rings << " over theta " << theta_min_deg << " .. " << theta_max_deg << " deg\n"
+      << "beam centre [m]: " << beam_centre_m.x() << ", " << beam_centre_m.y() << "\n"
+      << "lobe detection significance: " << detection_significance << " sigma\n"
+      << "chi2/dof: " << chi2_reduced << ", rms normalized residual: " << rms_normalized_residual << "\n"
+      << "flat-fielded: " << (flat_fielded ? "yes" : "no") << ", clean subtracted: " << (clean_subtracted ? "yes" : "no")
+      << "\ncategories (Gu 2007 Fig. 2): ";
+  for (size_t i = 0; i < categories.size(); ++i) out << (i ? ", " : "") << categories[i];
+  out << "\ntime [s]: " << total_s << "\n";
+  return out.str();
+}
+
+std::vector<std::string> ContaminantCategories(double g, double sigma_g) {
+  struct Range {
+    const char* name;
+    double lo, hi;
+  };
+  const Range ranges[] = {{"dust", 0.4, 0.9}, {"dirt", 0.0, 0.8}, {"lipid", 0.7, 1.0}};
+  std::vector<std::string> out;
+  for (const Range& r : ranges) {
+    if (g + sigma_g >= r.lo && g - sigma_g <= r.hi) out.push_back(r.name);
+  }
+  return out;
+}
+
+namespace {
+
+double Median(std::vector<double>* v) {
+  std::nth_element(v->begin(), v->begin() + v->size() / 2, v->end());
+  return (*v)[v->size() / 2];
+}
+
+// Sub-pixel beam centre: radiance-weighted centroid of the pixels above half the peak, within
+// a few beam radii of the brightest pixel. Fails if the peak does not stand out.
+Status FindBeamCentre(const LaserLobeImages& images, Eigen::Vector2d* centre_m) {
+  const Image& lobe = images.lobe.radiance;
+  const int w = lobe.width(), h = lobe.height();
+  int best = -1;
+  std::vector<double> values;
+  for (int i = 0; i < w * h; ++i) {
+    if (images.outside.data()[i] > 0) continue;
+    values.push_back(lobe.data()[i]);
+    if (best < 0 || lobe.data()[i] > lobe.data()[best]) best = i;
+  }
+  if (best < 0) return Status::Error("beam not found: the board region is outside the camera view");
+  const double peak = lobe.data()[best];
+  const double median = Median(&values);
+  const double noise = std::sqrt(std::max(static_cast<double>(images.lobe.variance.data()[best]), 0.0));
+  // A spike saturated at every exposure only has a lower bound (and no noise estimate).
+  const bool saturated = images.lobe.all_saturated.data()[best] > 0;
+  if (!(peak > 20 * std::max(median, 0.0) && (saturated || peak > 20 * noise))) {
+    std::ostringstream msg;
+    msg << "beam not found: the brightest board pixel (" << peak << " DN/us) does not stand out from the median ("
+        << median << ") and the noise (" << noise << "); is the laser on and aimed at the board region?";
+    return Status::Error(msg.str());
+  }
+  const int bx = best % w, by = best / w;
+  const int radius = static_cast<int>(std::ceil(3 * images.beam_radius_m / images.pixel_pitch_m)) + 3;
+  double sw = 0, sx = 0, sy = 0;
+  for (int y = std::max(0, by - radius); y <= std::min(h - 1, by + radius); ++y) {
+    for (int x = std::max(0, bx - radius); x <= std::min(w - 1, bx + radius); ++x) {
+      const double v = lobe.at(x, y) - 0.5 * peak;
+      if (v <= 0) continue;
+      sw += v;
+      sx += v * (x + 0.5);
+      sy += v * (y + 0.5);
+    }
+  }
+  *centre_m = images.grid_min_m + images.pixel_pitch_m * Eigen::Vector2d(sx / sw, sy / sw);
+  return Status::Ok();
+}
+
+
+// Fits log beta, g (and tau) to `rings`, starting from the best g of a grid with the
+// closed-form beta. Returns false if no positive scale fits.
+bool SolveEq8(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double* log_beta, double* g,
+              double* tau, ceres::Problem* problem, ceres::Solver::Summary* ceres_summary) {
+  double best_chi2 = -1, g0 = 0, beta0 = 0;
+  for (double gi = -0.9; gi <= 0.981; gi += 0.01) {
+    double sff = 0, sfi = 0;
+    for (const auto& ring : rings) {
+      const double f = LaserLobeProfile(std::cos(ring.theta_rad), gi, options.tau);
+      sff += Sqr(f / ring.sigma);
+      sfi += f * ring.intensity / Sqr(ring.sigma);
+    }
+    const double beta = sfi / sff;
+    if (!(beta > 0)) continue;
+    double chi2 = 0;
+    for (const auto& ring : rings) {
+      chi2 += Sqr((beta * LaserLobeProfile(std::cos(ring.theta_rad), gi, options.tau) - ring.intensity) / ring.sigma);
+    }
+    if (best_chi2 < 0 || chi2 < best_chi2) {
+      best_chi2 = chi2;
+      g0 = gi;
+      beta0 = beta;
+    }
+  }
+  if (best_chi2 < 0) return false;
+  *log_beta = std::log(beta0);
+  *g = g0;
+  *tau = options.tau;
+  for (const auto& ring : rings) {
+    problem->AddResidualBlock(LaserLobeRingCost::Create(std::cos(ring.theta_rad), ring.intensity, ring.sigma),
+                              new ceres::HuberLoss(options.huber_scale), log_beta, g, tau);
+  }
+  problem->SetParameterLowerBound(g, 0, -0.99);
+  problem->SetParameterUpperBound(g, 0, 0.99);
+  if (options.tau_free) {
+    problem->AddResidualBlock(GaussianPriorCost::Create(options.tau, options.tau_prior_sigma), nullptr, tau);
+    problem->SetParameterLowerBound(tau, 0, 1e-4);
+    problem->SetParameterUpperBound(tau, 0, 10);
+  } else {
+    problem->SetParameterBlockConstant(tau);
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::DENSE_QR;
+  solver_options.max_num_iterations = 100;
+  solver_options.logging_type = ceres::SILENT;
+  ceres::Solve(solver_options, problem, ceres_summary);
+  return ceres_summary->IsSolutionUsable();
+}
+
+// Block jackknife of g over kJackknifeBlocks contiguous theta blocks of rings. When Eq. 8 does
+// not describe the lobe's shape (multiple scattering, stray light), fits on different angle
+// ranges disagree, and this spread shows it where the covariance cannot.
+constexpr int kJackknifeBlocks = 8;
+double JackknifeSigmaG(const PhaseFitOptions& options, const std::vector<LaserRing>& rings) {
+  const int n = static_cast<int>(rings.size());
+  if (n < 2 * kJackknifeBlocks) return 0;
+  std::vector<double> estimates;
+  for (int b = 0; b < kJackknifeBlocks; ++b) {
+    std::vector<LaserRing> kept;
+    for (int k = 0; k < n; ++k) {
+      if (k * kJackknifeBlocks / n != b) kept.push_back(rings[k]);
+    }
+    double log_beta, g, tau;
+    ceres::Problem problem;
+    ceres::Solver::Summary summary;
+    if (SolveEq8(options, kept, &log_beta, &g, &tau, &problem, &summary)) estimates.push_back(g);
+  }
+  if (estimates.size() < 2) return 0;
+  double mean = 0;
+  for (double e : estimates) mean += e / estimates.size();
+  double ss = 0;
+  for (double e : estimates) ss += Sqr(e - mean);
+  const double m = static_cast<double>(estimates.size());
+  return std::sqrt((m - 1) / m * ss);
+}
+
+// Model-consistency term: |g(all rings) - g(rings with theta <= max_theta / 2)|. Single
+// scattering (Eq. 8) misses the multiply scattered light, which weighs most at large angles,
+// so a lobe Eq. 8 does not describe gives different g over different angle ranges.
+double RangeConsistencySigmaG(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double g_all) {
+  const double theta_half = 0.5 * options.max_theta_deg * kPi / 180;
+  std::vector<LaserRing> inner;
+  for (const auto& ring : rings) {
+    if (ring.theta_rad <= theta_half) inner.push_back(ring);
+  }
+  if (inner.size() < 5) return 0;
+  double log_beta, g, tau;
+  ceres::Problem problem;
+  ceres::Solver::Summary summary;
+  if (!SolveEq8(options, inner, &log_beta, &g, &tau, &problem, &summary)) return 0;
+  return std::abs(g - g_all);
+}
+
+}  // namespace
+
+Status FitPhase(const PhaseFitOptions& options, const LaserLobeImages& images, std::vector<LaserRing>* rings,
+                PhaseFitSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
+  *summary = PhaseFitSummary();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  if (images.lobe.empty()) return Status::Error("FitPhase: no contaminated laser lobe");
+  if (!(images.board_distance_m > 0)) return Status::Error("FitPhase: board distance must be > 0");
+  THINSLAB_RETURN_IF_ERROR(FindBeamCentre(images, &summary->beam_centre_m));
+  const Eigen::Vector2d centre = summary->beam_centre_m;
+  const Image& lobe = images.lobe.radiance;
+  const int w = lobe.width(), h = lobe.height();
+  const double p = images.pixel_pitch_m, d = images.board_distance_m;
+
+  // Flat field normalised at the beam centre: divides out vignetting between rings.
+  const bool flat = options.flat_field && !images.flat.empty();
+  double flat_centre = 1;
+  if (flat) {
+    const Eigen::Vector2d c_px = (centre - images.grid_min_m) / p;
+    flat_centre = images.flat.radiance.Bilinear(c_px.x(), c_px.y());
+    if (!(flat_centre > 0)) return Status::Error("FitPhase: the flat field has no signal at the beam centre");
+  }
+  const bool subtract = options.subtract_clean && !images.clean.empty();
+  summary->flat_fielded = flat;
+  summary->clean_subtracted = subtract;
+
+  const double r_core = std::max(options.core_beam_radii * images.beam_radius_m,
+                                 images.beam_radius_m + options.core_margin_px * p);
+  const double r_max = d * std::tan(options.max_theta_deg * kPi / 180);
+  const double ring_w = options.ring_width_px * p;
+  const int num_bins = std::max(1, static_cast<int>((r_max - r_core) / ring_w));
+  std::vector<std::vector<double>> bins(num_bins);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      if (images.outside.data()[i] > 0 || images.lobe.all_saturated.data()[i] > 0) continue;
+      if (subtract && images.clean.all_saturated.data()[i] > 0) continue;
+      const Eigen::Vector2d q = images.grid_min_m + p * Eigen::Vector2d(x + 0.5, y + 0.5);
+      const double r = (q - centre).norm();
+      if (r < r_core || r >= r_max) continue;
+      const int k = static_cast<int>((r - r_core) / ring_w);
+      if (k < 0 || k >= num_bins) continue;
+      double v = lobe.data()[i];
+      if (subtract) v -= images.clean.radiance.data()[i];
+      if (flat) {
+        const double f = images.flat.radiance.data()[i];
+        if (!(f > 0)) continue;
+        v *= flat_centre / f;
+      }
+      bins[k].push_back(v);
+    }
+  }
+  rings->clear();
+  for (int k = 0; k < num_bins; ++k) {
+    if (static_cast<int>(bins[k].size()) < options.min_ring_pixels) continue;
+    std::vector<double> v = bins[k];
+    const double med = Median(&v);
+    for (double& x : v) x = std::abs(x - med);
+    const double mad = Median(&v);
+    LaserRing ring;
+    ring.r_m = r_core + (k + 0.5) * ring_w;
+    ring.theta_rad = std::atan(ring.r_m / d);
+    ring.intensity = med;
+    // Standard error of the median of ~normal data: 1.2533 * sigma / sqrt(n), sigma = 1.4826 MAD.
+    ring.sigma = std::max(1.2533 * 1.4826 * mad / std::sqrt(static_cast<double>(bins[k].size())), 1e-12);
+    ring.pixels = static_cast<int>(bins[k].size());
+    rings->push_back(ring);
+  }
+  summary->num_rings = static_cast<int>(rings->size());
+  if (rings->size() < 5) {
+    std::ostringstream msg;
+    msg << "FitPhase: only " << rings->size() << " rings with >= " << options.min_ring_pixels
+        << " pixels between the core (r = " << r_core * 1e3 << " mm) and theta = " << options.max_theta_deg
+        << " deg; is the board region large enough and seen by the camera?";
+    return Status::Error(msg.str());
+  }
+  summary->theta_min_deg = rings->front().theta_rad * 180 / kPi;
+  summary->theta_max_deg = rings->back().theta_rad * 180 / kPi;
+
+  // Is there a lobe at all? chi2 of the rings against zero.
+  double chi2_zero = 0;
+  for (const auto& ring : *rings) chi2_zero += Sqr(ring.intensity / ring.sigma);
+  const double n_rings = static_cast<double>(rings->size());
+  summary->detection_significance = (chi2_zero - n_rings) / std::sqrt(2 * n_rings);
+  summary->tau = options.tau;
+  auto finish = [&]() {
+    summary->total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
+  if (summary->detection_significance < options.min_significance) {
+    summary->result = PhaseFitSummary::Result::kNoMeasurableScattering;
+    std::ostringstream msg;
+    msg << "no measurable scattering: outside the beam core the lobe is consistent with zero (significance "
+        << summary->detection_significance << " sigma < " << options.min_significance << "); g is not defined";
+    summary->message = msg.str();
+    finish();
+    return Status::Ok();
+  }
+
+  double log_beta = 0, g = 0, tau = options.tau;
+  ceres::Problem problem;
+  ceres::Solver::Summary ceres_summary;
+  if (!SolveEq8(options, *rings, &log_beta, &g, &tau, &problem, &ceres_summary)) {
+    summary->result = PhaseFitSummary::Result::kFailure;
+    summary->message = ceres_summary.message.empty() ? "no positive lobe scale fits the rings"
+                                                     : "Ceres: " + ceres_summary.message;
+    finish();
+    return Status::Error("FitPhase: " + summary->message);
+  }
+
+  // Residuals and chi2 (without the robust loss).
+  double chi2 = 0;
+  for (auto& ring : *rings) {
+    ring.model = std::exp(log_beta) * LaserLobeProfile(std::cos(ring.theta_rad), g, tau);
+    chi2 += Sqr((ring.model - ring.intensity) / ring.sigma);
+  }
+  // log beta and g are free; a free tau brings its own prior residual, so dof stays n - 2.
+  const double dof = std::max(1.0, n_rings - 2);
+  summary->chi2_reduced = chi2 / dof;
+  summary->rms_normalized_residual = std::sqrt(chi2 / n_rings);
+  summary->g = g;
+  summary->beta = std::exp(log_beta);
+  summary->tau = tau;
+
+  // Covariance of (log beta, g[, tau]), scaled by chi2/dof when the model does not explain the
+  // rings to within their standard errors (multiple scattering, stray light).
+  ceres::Covariance::Options cov_options;
+  cov_options.algorithm_type = ceres::DENSE_SVD;
+  cov_options.null_space_rank = -1;
+  ceres::Covariance covariance(cov_options);
+  std::vector<std::pair<const double*, const double*>> blocks = {{&g, &g}, {&log_beta, &log_beta}};
+  if (options.tau_free) blocks.push_back({&tau, &tau});
+  if (!covariance.Compute(blocks, &problem)) {
+    summary->result = PhaseFitSummary::Result::kFailure;
+    summary->message = "g is not determined by the rings (covariance is rank-deficient)";
+    finish();
+    return Status::Error("FitPhase: " + summary->message);
+  }
+  const double scale = std::sqrt(std::max(1.0, summary->chi2_reduced));
+  double var = 0;
+  covariance.GetCovarianceBlock(&g, &g, &var);
+  summary->sigma_g_covariance = std::sqrt(std::max(var, 0.0)) * scale;
+  summary->sigma_g_jackknife = JackknifeSigmaG(options, *rings);
+  summary->sigma_g_range = RangeConsistencySigmaG(options, *rings, g);
+  summary->sigma_g = std::hypot(std::max(summary->sigma_g_covariance, summary->sigma_g_jackknife),
+                                summary->sigma_g_range);
+  covariance.GetCovarianceBlock(&log_beta, &log_beta, &var);
+  summary->sigma_log_beta = std::sqrt(std::max(var, 0.0)) * scale;
+  if (options.tau_free) {
+    covariance.GetCovarianceBlock(&tau, &tau, &var);
+    summary->sigma_tau = std::sqrt(std::max(var, 0.0)) * scale;
+  }
+  summary->categories = ContaminantCategories(g, summary->sigma_g);
+  summary->result = PhaseFitSummary::Result::kSuccess;
+  summary->message = std::abs(g) > 0.985 ? "g is at its bound (|g| > 0.985): the lobe is narrower than the rings resolve"
+                                         : "ok";
+  finish();
+  return Status::Ok();
+}
+
+}  // namespace thinslab

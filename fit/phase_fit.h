@@ -1,0 +1,87 @@
+// SPDX-License-Identifier: Apache-2.0
+// Henyey-Greenstein g of a contaminant from its laser lobe (Gu et al. 2007, Sec. 5.2, Eq. 8).
+// The HDR board image is flat-fielded (the board under a uniform light divides out the camera's
+// vignetting), the clean-glass lobe is subtracted (stray light), the beam centre is found with
+// sub-pixel precision, the board is cut into rings of radius r around it, theta = atan(r / d),
+// and each ring gives a robust mean (median) with its standard error. Eq. 8 is fitted to the
+// rings with Ceres (parameters log beta, g and optionally tau with a Gaussian prior; Huber
+// loss), and the covariance gives sigma_g.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "calib/laser_lobe_preparation.h"
+#include "core/status.h"
+
+namespace thinslab {
+
+struct PhaseFitOptions {
+  // Optical thickness of the layer (unitless), e.g. from `thinslab fit tau` on a shadow map of
+  // the same layer. Eq. 8's shape depends on it weakly.
+  double tau = 0.3;
+  // Fit tau too, with a Gaussian prior N(tau, tau_prior_sigma).
+  bool tau_free = false;
+  double tau_prior_sigma = 0.1;
+  double ring_width_px = 2;  // Ring width in board pixels.
+  // The spike core is excluded: rings start at r = max(core_beam_radii * beam radius,
+  // beam radius + core_margin_px pixels) from the beam centre (docs/models/laser_lobe_g.md).
+  double core_beam_radii = 3;
+  double core_margin_px = 4;
+  double max_theta_deg = 60;  // Outermost ring.
+  int min_ring_pixels = 8;
+  bool subtract_clean = true;  // Subtract the clean-glass lobe when the session has one.
+  bool flat_field = true;      // Divide by the board flat field when the session has one.
+  double huber_scale = 2.0;    // Huber loss scale on ring residuals, in standard errors.
+  // Below this significance (sigma) of the lobe over zero, the result is "no measurable scattering".
+  double min_significance = 5;
+
+  bool Check(std::string* error) const;
+};
+
+struct LaserRing {
+  double r_m = 0;
+  double theta_rad = 0;
+  double intensity = 0;  // Flat-fielded DN per microsecond (median of the ring).
+  double sigma = 0;      // Standard error of the median.
+  int pixels = 0;
+  double model = 0;      // Fitted Eq. 8 value (after FitPhase).
+};
+
+struct PhaseFitSummary {
+  enum class Result { kNotRun, kSuccess, kNoMeasurableScattering, kFailure };
+  Result result = Result::kNotRun;
+  std::string message = "FitPhase was not called.";
+  double g = 0;
+  // sigma_g = hypot(max(statistical sigma from the covariance scaled by sqrt(chi2/dof),
+  // block-jackknife sigma over 8 theta blocks of rings), angle-range consistency |g(all rings) -
+  // g(theta <= max_theta / 2)|). The last two catch lobe-shape mismatch (multiple scattering,
+  // which Eq. 8 leaves out) that the covariance, which assumes the model is right, cannot.
+  double sigma_g = 0, sigma_g_covariance = 0, sigma_g_jackknife = 0, sigma_g_range = 0;
+  double beta = 0, sigma_log_beta = 0;
+  double tau = 0, sigma_tau = 0;
+  double chi2_reduced = 0;
+  double rms_normalized_residual = 0;
+  double detection_significance = 0;  // (chi2 of the rings against zero - N) / sqrt(2N).
+  int num_rings = 0;
+  double theta_min_deg = 0, theta_max_deg = 0;
+  Eigen::Vector2d beam_centre_m = Eigen::Vector2d::Zero();
+  std::vector<std::string> categories;  // Gu Fig. 2 categories consistent with g +- sigma_g.
+  bool flat_fielded = false, clean_subtracted = false;
+  double total_s = 0;
+
+  bool IsUsable() const { return result == Result::kSuccess; }
+  std::string ResultName() const;
+  std::string BriefReport() const;
+  std::string FullReport() const;
+};
+
+// Gu et al. 2007 Fig. 2: dust 0.4 <= g <= 0.9, dirt 0 <= g <= 0.8, lipids 0.7 <= g <= 1.
+std::vector<std::string> ContaminantCategories(double g, double sigma_g);
+
+// Fails (Status) on bad options or input (beam not found, too few rings). A clean pane is not
+// an error: the summary says kNoMeasurableScattering.
+Status FitPhase(const PhaseFitOptions& options, const LaserLobeImages& images, std::vector<LaserRing>* rings,
+                PhaseFitSummary* summary);
+
+}  // namespace thinslab
