@@ -214,5 +214,57 @@ TEST_F(CliBadInputTest, BadOptionValue) {
   EXPECT_FALSE(fs::exists(session + "/fit/tau"));
 }
 
+// Laser-lobe captures (`thinslab fit phase`).
+class LaserCliTest : public CliBadInputTest {
+ protected:
+  static void SetUpTestSuite() {
+    laser_dir_ = new TempDir();
+    const std::string small = " --camera-width-px 640 --camera-height-px 480 --capture-clean false";
+    ASSERT_EQ(RunThinslab("sim laser " + *laser_dir_ / "base" + small).exit_code, 0);
+    ASSERT_EQ(RunThinslab("sim laser " + *laser_dir_ / "one_exposure" + small + " --exposures-us 2000").exit_code, 0);
+    ASSERT_EQ(RunThinslab("sim laser " + *laser_dir_ / "no_beam" + small + " --spike-fill 1e-9").exit_code, 0);
+  }
+  static void TearDownTestSuite() { delete laser_dir_; }
+
+  void ExpectPhaseFails(const std::string& session, const std::vector<std::string>& expected_in_message) {
+    const RunResult result = RunThinslab("fit phase " + session);
+    EXPECT_NE(result.exit_code, 0) << result.output;
+    EXPECT_EQ(CountLines(result.output), 1) << result.output;
+    for (const auto& piece : expected_in_message) {
+      EXPECT_NE(result.output.find(piece), std::string::npos) << "'" << piece << "' not in: " << result.output;
+    }
+    EXPECT_FALSE(fs::exists(session + "/fit/phase")) << "output left behind";
+  }
+
+  static TempDir* laser_dir_;
+};
+
+TempDir* LaserCliTest::laser_dir_ = nullptr;
+
+TEST_F(LaserCliTest, ValidCaptureFitsAndWritesReport) {
+  const std::string session = *laser_dir_ / "valid";
+  fs::copy(*laser_dir_ / "base", session, fs::copy_options::recursive);
+  const RunResult result = RunThinslab("fit phase " + session + " --tau 0.3");
+  EXPECT_EQ(result.exit_code, 0) << result.output;
+  for (const char* file : {"summary.json", "summary.txt", "rings.csv", "lobe_plot.png", "options.ini"}) {
+    EXPECT_TRUE(fs::exists(session + "/fit/phase/" + file)) << file;
+  }
+}
+
+TEST_F(LaserCliTest, NoExposureBracket) {
+  ExpectPhaseFails(*laser_dir_ / "one_exposure", {"session.json", "single exposure_time_us", "bracket"});
+}
+
+TEST_F(LaserCliTest, BeamNotFound) { ExpectPhaseFails(*laser_dir_ / "no_beam", {"no_beam", "beam not found"}); }
+
+TEST_F(LaserCliTest, BoardGeometryMissing) {
+  const std::string session = *laser_dir_ / "no_board";
+  fs::copy(*laser_dir_ / "base", session, fs::copy_options::recursive);
+  nlohmann::json j = ReadManifest(session);
+  j["rig"].erase("board");
+  WriteManifest(session, j);
+  ExpectPhaseFails(session, {"session.json", "rig.board"});
+}
+
 }  // namespace
 }  // namespace thinslab
