@@ -119,7 +119,7 @@ Status FindBeamCentre(const LaserLobeImages& images, Eigen::Vector2d* centre_m) 
   const double noise = std::sqrt(std::max(static_cast<double>(images.lobe.variance.data()[best]), 0.0));
   // A spike saturated at every exposure only has a lower bound (and no noise estimate).
   const bool saturated = images.lobe.all_saturated.data()[best] > 0;
-  if (!(peak > 20 * std::max(median, 0.0) && (saturated || peak > 20 * noise))) {
+  if (!(peak > 20 * std::max(median, 0.0) && (saturated || peak > 5 * noise))) {
     std::ostringstream msg;
     msg << "beam not found: the brightest board pixel (" << peak << " DN/us) does not stand out from the median ("
         << median << ") and the noise (" << noise << "); is the laser on and aimed at the board region?";

@@ -94,6 +94,20 @@ TEST(LaserLobe, OffCentreBeamAndSaturatedSpike) {
   ASSERT_TRUE(s.IsUsable()) << s.message;
   EXPECT_LT((s.beam_centre_m - sim.rig.beam_offset_m).norm(), 50e-6);
   EXPECT_LE(std::abs(s.g - 0.8), kMaxAbsErrorG);
+
+  // tau free with a Gaussian prior around a shadow-map value that is 30 % off.
+  PhaseFitOptions options;
+  options.tau = 0.39;
+  options.tau_free = true;
+  options.tau_prior_sigma = 0.1;
+  PhaseFitSummary free_tau;
+  std::vector<LaserRing> rings;
+  ASSERT_TRUE(FitPhasePipeline(dir / "offset", dir / "offset_free", options, 3, "# test\n", &free_tau, &rings).ok());
+  ASSERT_TRUE(free_tau.IsUsable()) << free_tau.message;
+  std::printf("tau free (prior 0.39 +- 0.1): tau = %.3f +- %.3f, g = %.4f +- %.4f\n", free_tau.tau, free_tau.sigma_tau,
+              free_tau.g, free_tau.sigma_g);
+  EXPECT_GT(free_tau.sigma_tau, 0);
+  EXPECT_LE(std::abs(free_tau.g - 0.8), kMaxAbsErrorG);
 }
 
 }  // namespace
