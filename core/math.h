@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 namespace thinslab {
 
@@ -33,6 +34,17 @@ inline T Lerp(const U& t, const T& a, const T& b) {
 inline double SafeSqrt(double x) {
   DCHECK_GE(x, -1e-9) << "SafeSqrt argument is too negative";
   return std::sqrt(std::max(0.0, x));
+}
+
+// The value of a double, or the scalar part of a ceres::Jet, for branch decisions in physics
+// code templated on T.
+template <typename T>
+inline double ScalarValue(const T& x) {
+  if constexpr (std::is_arithmetic_v<T>) {
+    return static_cast<double>(x);
+  } else {
+    return x.a;
+  }
 }
 
 }  // namespace thinslab
