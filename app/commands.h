@@ -19,6 +19,7 @@ int RunFit(int argc, char** argv);
 int RunDemo(int argc, char** argv);
 int RunFitPhase(int argc, char** argv);
 int RunSimLaser(int argc, char** argv);
+int RunCharts(int argc, char** argv);
 
 // Shared by `fit tau` and `demo`: reads the session, rectifies, fits and writes
 // <out_dir>/{tau.exr, tau_falsecolor.png, tau_plain_falsecolor.png, summary.json, summary.txt,

@@ -33,6 +33,7 @@ const std::vector<Command>& Commands() {
       {"sim", thinslab::RunSim, "simulate a capture session (sim shadow-maps | sim laser | sim pattern)"},
       {"fit", thinslab::RunFit, "fit a model to a capture (fit tau | fit phase)"},
       {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy"},
+      {"charts", thinslab::RunCharts, "model-vs-Monte-Carlo charts of the optics models (docs/models)"},
   };
   return commands;
 }

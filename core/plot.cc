@@ -124,7 +124,9 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
     cv::putText(canvas, panel.y_label, cv::Point(box.x + 5, box.y + 15), cv::FONT_HERSHEY_SIMPLEX, 0.45,
                 cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
     // Series.
-    int legend_y = box.y + 15;
+    int num_labels = 0;
+    for (const auto& s : panel.series) num_labels += !s.label.empty();
+    int legend_y = panel.legend_bottom_left ? box.y + box.height - 8 - 17 * (num_labels - 1) : box.y + 15;
     for (const auto& s : panel.series) {
       const cv::Scalar color = Bgr(s.color_bgr);
       std::vector<cv::Point> pts;
@@ -144,7 +146,7 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
       }
       if (s.line && pts.size() > 1) cv::polylines(canvas, pts, false, color, 2, cv::LINE_AA);
       if (!s.label.empty()) {
-        const int lx = box.x + box.width - 260;
+        const int lx = panel.legend_bottom_left ? box.x + 10 : box.x + box.width - 260;
         cv::line(canvas, cv::Point(lx, legend_y - 4), cv::Point(lx + 20, legend_y - 4), color, 2);
         cv::putText(canvas, s.label, cv::Point(lx + 26, legend_y), cv::FONT_HERSHEY_SIMPLEX, 0.42,
                     cv::Scalar(0, 0, 0), 1, cv::LINE_AA);

@@ -23,6 +23,7 @@ struct PlotPanel {
   bool log_y = false;
   double height_weight = 1;  // Relative panel height.
   bool zero_line = false;
+  bool legend_bottom_left = false;  // Default: top right.
 };
 
 struct PlotOptions {

@@ -342,6 +342,12 @@ TEST(LayerPathTracer, FrisvadVersusFullTransportTable) {
       EXPECT_LT(ratio_r, 1.0);
       EXPECT_LT(ratio_t, 1.0);
       EXPECT_LT(ratio_total, 1.0);
+      // Frisvad et al. quote < 1 % for tau <= 0.2 (Chandrasekhar); measured, the total
+      // transmitted light (direct + single) stays within 1 % only to tau 0.1 at normal
+      // incidence (2.5 % low at 0.2): assert what holds (docs/models/thin_slab.md).
+      if (mu0 == 1.0 && tau <= 0.1) {
+        EXPECT_GT(ratio_total, 0.99) << "tau " << tau;
+      }
     }
   }
 }

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -213,15 +214,18 @@ TEST(RoughSlabVsDualMicrofacet, RoughBottomOnlyMatchesRhoB) {
   }
 }
 
-TEST(RoughSlabVsDualMicrofacet, BothRoughReportsTheBestAlpha) {
+TEST(RoughSlabVsDualMicrofacet, BothRoughBestAlphaBeatsASingleRoughInterface) {
   // Both faces GGX(alpha_face); the model uses one NDF. Dai et al. fit D per point (Sec. 4.2);
   // here D is GGX with the roughness alpha_model scanned, and alpha of Eq. 11 in steps of 0.1.
-  // Only printed: the single-NDF model is an approximation whose error is what is measured.
+  // The single-interface model is the best endpoint (alpha = 0 or 1: one rough face, the other
+  // flat) over the same roughness scan. Dai et al. Fig. 5: at oblique incidence the
+  // interpolated dual model fits a two-sided rough slab better than any single rough interface.
+  // At normal incidence the two configurations coincide, so only 30 deg is asserted.
   constexpr double kFace = 0.2;
   for (double theta_deg : {0.0, 30.0}) {
     const RoughSlabPhotonTracerResult r = TraceLobe(kFace, kFace, theta_deg, 23);
     const Eigen::Vector3d wi = SphericalDirection(Deg(theta_deg), 0.0);
-    double best = 1e9, best_alpha = -1, best_rough = -1;
+    double best = 1e9, best_alpha = -1, best_rough = -1, best_single = 1e9;
     for (double rough : {0.2, 0.25, 0.3, 0.35, 0.4}) {
       const auto btdf = MakeDualMicrofacetBtdf(GgxDistribution(rough), GgxDistribution(rough), kEta);
       std::printf("both rough %.2f, theta_i=%2.0f, model GGX %.2f: rel RMS by alpha", kFace, theta_deg, rough);
@@ -229,6 +233,7 @@ TEST(RoughSlabVsDualMicrofacet, BothRoughReportsTheBestAlpha) {
         const double alpha = 0.1 * a;
         const LobeComparison c = CompareLobe(r, [&](const Eigen::Vector3d& o) { return btdf.Eval(wi, o, alpha); });
         std::printf(" %.3f", c.rel_rms);
+        if (a == 0 || a == 10) best_single = std::min(best_single, c.rel_rms);
         if (c.rel_rms < best) {
           best = c.rel_rms;
           best_alpha = alpha;
@@ -237,9 +242,15 @@ TEST(RoughSlabVsDualMicrofacet, BothRoughReportsTheBestAlpha) {
       }
       std::printf("\n");
     }
-    std::printf("both rough %.2f, theta_i=%2.0f: best rel RMS %.4f at alpha=%.1f, model roughness %.2f\n", kFace,
-                theta_deg, best, best_alpha, best_rough);
+    std::printf(
+        "both rough %.2f, theta_i=%2.0f: best rel RMS %.4f at alpha=%.1f, model roughness %.2f; best single rough "
+        "interface %.4f (ratio %.2f)\n",
+        kFace, theta_deg, best, best_alpha, best_rough, best_single, best / best_single);
     EXPECT_GT(best_alpha, -1.0);
+    const double max_error_ratio = 0.7;
+    if (theta_deg > 0) {
+      EXPECT_LT(best / best_single, max_error_ratio);
+    }
   }
 }
 
