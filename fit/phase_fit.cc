@@ -82,14 +82,9 @@ std::string PhaseFitSummary::FullReport() const {
 }
 
 std::vector<std::string> ContaminantCategories(double g, double sigma_g) {
-  struct Range {
-    const char* name;
-    double lo, hi;
-  };
-  const Range ranges[] = {{"dust", 0.4, 0.9}, {"dirt", 0.0, 0.8}, {"lipid", 0.7, 1.0}};
   std::vector<std::string> out;
-  for (const Range& r : ranges) {
-    if (g + sigma_g >= r.lo && g - sigma_g <= r.hi) out.push_back(r.name);
+  for (const ContaminantCategoryRange& r : GuContaminantCategories()) {
+    if (g + sigma_g >= r.g_min && g - sigma_g <= r.g_max) out.push_back(r.name);
   }
   return out;
 }

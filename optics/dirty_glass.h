@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cmath>
+#include <vector>
 
 #include "optics/henyey_greenstein.h"
 
@@ -48,6 +49,22 @@ template <typename T>
 T LaserLobeProfile(const T& cos_theta, const T& g, const T& tau) {
   const T mu2 = cos_theta * cos_theta;
   return LayerSingleScatterRadiance(tau, cos_theta, T(1), g) * mu2 * mu2;
+}
+
+// Gu et al. 2007, Fig. 2: the three contaminant categories. Dust has no interface with the air
+// (n2 = n1), dirt and lipids do (n2 != n1); optical thickness is "small" for dust and lipids,
+// "medium" for dirt.
+struct ContaminantCategoryRange {
+  const char* name;
+  bool interface_with_air;
+  const char* optical_thickness;
+  double g_min, g_max;
+};
+
+inline const std::vector<ContaminantCategoryRange>& GuContaminantCategories() {
+  static const std::vector<ContaminantCategoryRange> categories = {
+      {"dust", false, "small", 0.4, 0.9}, {"dirt", true, "medium", 0.0, 0.8}, {"lipid", true, "small", 0.7, 1.0}};
+  return categories;
 }
 
 }  // namespace thinslab
