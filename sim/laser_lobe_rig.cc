@@ -56,21 +56,6 @@ class SimLaserLobeRig::LaserImpl : public Laser {
   SimLaserLobeRig* rig_;
 };
 
-class SimLaserLobeRig::FlatImpl : public Projector {
- public:
-  explicit FlatImpl(SimLaserLobeRig* rig) : rig_(rig) {}
-  Status ShowPattern(const std::string& pattern) override {
-    if (!pattern.empty() && pattern != "flat") {
-      return Status::Error("flat-field source (sim): unknown pattern '" + pattern + "'");
-    }
-    rig_->flat_on_ = pattern == "flat";
-    return Status::Ok();
-  }
-
- private:
-  SimLaserLobeRig* rig_;
-};
-
 SimLaserLobeRig::~SimLaserLobeRig() = default;
 Camera* SimLaserLobeRig::camera() { return camera_.get(); }
 Laser* SimLaserLobeRig::laser() { return laser_.get(); }
@@ -165,7 +150,7 @@ Status SimLaserLobeRig::Create(const SimLaserLobeOptions& options, std::unique_p
   SimLaserLobeRig* raw = rig.get();
   rig->camera_.reset(new SimBoardCamera(cam_options, [raw](double x, double y) { return raw->BoardIrradiance(x, y); }));
   rig->laser_.reset(new LaserImpl(raw));
-  rig->flat_.reset(new FlatImpl(raw));
+  rig->flat_.reset(new SimFlatProjector("flat-field source", [raw](bool on) { raw->flat_on_ = on; }));
 
   rig->rig_.cameras = {rig->camera_->info()};
   rig->rig_.sample.region_min_m = Eigen::Vector2d(-options.board_half_width_m, -options.board_half_width_m);

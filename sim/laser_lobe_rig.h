@@ -16,6 +16,7 @@
 #include "core/session.h"
 #include "sim/layer_monte_carlo.h"
 #include "sim/sim_board_camera.h"
+#include "sim/sim_flat_projector.h"
 
 namespace thinslab {
 
@@ -64,7 +65,6 @@ class SimLaserLobeRig {
 
  private:
   class LaserImpl;
-  class FlatImpl;
   SimLaserLobeRig() = default;
 
   SimLaserLobeOptions options_;
@@ -77,7 +77,7 @@ class SimLaserLobeRig {
   bool flat_on_ = false;
   std::unique_ptr<SimBoardCamera> camera_;
   std::unique_ptr<LaserImpl> laser_;
-  std::unique_ptr<FlatImpl> flat_;
+  std::unique_ptr<SimFlatProjector> flat_;
 };
 
 struct SyntheticLaserSessionOptions {

@@ -42,21 +42,6 @@ bool SimShadowMapOptions::Check(std::string* error) const {
   return false;
 }
 
-class SimShadowMapRig::Proj : public Projector {
- public:
-  explicit Proj(SimShadowMapRig* rig) : rig_(rig) {}
-  Status ShowPattern(const std::string& pattern) override {
-    if (!pattern.empty() && pattern != "flat") {
-      return Status::Error("projector (sim): unknown pattern '" + pattern + "' (known: flat, \"\" for off)");
-    }
-    rig_->pattern_ = pattern;
-    return Status::Ok();
-  }
-
- private:
-  SimShadowMapRig* rig_;
-};
-
 Status SimShadowMapRig::Create(const SimShadowMapOptions& options, const Image& tau,
                                std::unique_ptr<SimShadowMapRig>* out) {
   std::string error;
@@ -153,7 +138,7 @@ Status SimShadowMapRig::Create(const SimShadowMapOptions& options, const Image& 
   cam_options.seed = options.seed;
   SimShadowMapRig* raw = rig.get();
   rig->camera_.reset(new SimBoardCamera(cam_options, [raw](double x, double y) {
-    return raw->pattern_.empty() ? 0.0 : raw->BoardIrradiance(raw->sample_state_, x, y);
+    return raw->projector_on_ ? raw->BoardIrradiance(raw->sample_state_, x, y) : 0.0;
   }));
   const CameraInfo& cam = rig->camera_->info();
   rig->rig_.cameras = {cam};
@@ -170,7 +155,7 @@ Status SimShadowMapRig::Create(const SimShadowMapOptions& options, const Image& 
   rig->rig_.projector.kind = "collimated";
   rig->rig_.projector.direction_in_sample = Eigen::Vector3d(0, 0, -1);
 
-  rig->projector_.reset(new Proj(rig.get()));
+  rig->projector_.reset(new SimFlatProjector("projector", [raw](bool on) { raw->projector_on_ = on; }));
   *out = std::move(rig);
   return Status::Ok();
 }

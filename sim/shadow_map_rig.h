@@ -19,6 +19,7 @@
 #include "sim/layer_monte_carlo.h"
 #include "sim/sensor_model.h"
 #include "sim/sim_board_camera.h"
+#include "sim/sim_flat_projector.h"
 
 namespace thinslab {
 
@@ -68,7 +69,6 @@ class SimShadowMapRig {
   double BoardIrradiance(const std::string& sample_state, double x_m, double y_m) const;
 
  private:
-  class Proj;
   SimShadowMapRig() = default;
 
   SimShadowMapOptions options_;
@@ -78,9 +78,9 @@ class SimShadowMapRig {
   // texture's value is the layer over the texel's whole area) and the smooth scattered part.
   Image e0_, board_clean_, board_direct_, board_scattered_;
   std::string sample_state_ = "clean";
-  std::string pattern_;
+  bool projector_on_ = false;
   std::unique_ptr<SimBoardCamera> camera_;
-  std::unique_ptr<Proj> projector_;
+  std::unique_ptr<SimFlatProjector> projector_;
 };
 
 }  // namespace thinslab
