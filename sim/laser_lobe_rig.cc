@@ -4,13 +4,12 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
-#include <filesystem>
 #include <sstream>
 
 #include "acquire/session_writer.h"
 #include "core/file.h"
+#include "sim/sim_session.h"
 #include "core/math.h"
-#include "core/version.h"
 #include "optics/dirty_glass.h"
 #include "optics/shadow_map_model.h"
 
@@ -172,19 +171,10 @@ Status SimLaserLobeRig::Create(const SimLaserLobeOptions& options, std::unique_p
 }
 
 Status SynthesizeLaserLobeSession(const SyntheticLaserSessionOptions& options, const std::string& session_dir) {
-  std::error_code ec;
-  if (std::filesystem::exists(session_dir, ec) && !std::filesystem::is_empty(session_dir, ec)) {
-    return Status::Error(session_dir + ": output session folder exists and is not empty");
-  }
   std::unique_ptr<SimLaserLobeRig> rig;
   THINSLAB_RETURN_IF_ERROR(SimLaserLobeRig::Create(options.rig, &rig));
-  Session header;
-  header.name = options.name;
-  header.kind = "laser_lobe";
-  header.software = std::string("thinslab ") + THINSLAB_VERSION_STRING + " sim (" + THINSLAB_GIT_HASH + ")";
-  header.rig = rig->rig_info();
   SessionWriter writer;
-  THINSLAB_RETURN_IF_ERROR(writer.Open(session_dir, header));
+  THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "laser_lobe", rig->rig_info(), &writer));
   THINSLAB_RETURN_IF_ERROR(RunLaserLobeSession(options.session, rig->camera(), rig->laser(), rig->flat_source(),
                                                rig->sample_changer(), &writer));
   const std::string truth_dir = JoinPath(session_dir, "ground_truth");

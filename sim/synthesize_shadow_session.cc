@@ -3,31 +3,22 @@
 
 #include <nlohmann/json.hpp>
 
-#include <filesystem>
 
 #include "acquire/session_writer.h"
 #include "core/exr_io.h"
 #include "core/file.h"
 #include "core/version.h"
+#include "sim/sim_session.h"
 
 namespace thinslab {
 
 Status SynthesizeShadowMapSession(const SyntheticShadowSessionOptions& options, const Image& tau,
                                   const std::string& session_dir) {
-  std::error_code ec;
-  if (std::filesystem::exists(session_dir, ec) && !std::filesystem::is_empty(session_dir, ec)) {
-    return Status::Error(session_dir + ": output session folder exists and is not empty");
-  }
   std::unique_ptr<SimShadowMapRig> rig;
   THINSLAB_RETURN_IF_ERROR(SimShadowMapRig::Create(options.rig, tau, &rig));
 
-  Session header;
-  header.name = options.name;
-  header.kind = "shadow_map";
-  header.software = std::string("thinslab ") + THINSLAB_VERSION_STRING + " sim (" + THINSLAB_GIT_HASH + ")";
-  header.rig = rig->rig_info();
   SessionWriter writer;
-  THINSLAB_RETURN_IF_ERROR(writer.Open(session_dir, header));
+  THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "shadow_map", rig->rig_info(), &writer));
   THINSLAB_RETURN_IF_ERROR(
       RunShadowMapSession(options.session, rig->camera(), rig->projector(), rig->sample_changer(), &writer));
 

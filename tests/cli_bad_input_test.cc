@@ -143,6 +143,15 @@ TEST_F(CliBadInputTest, TruncatedExrTexture) {
   EXPECT_FALSE(fs::exists(*dir_ / "from_truncated"));
 }
 
+TEST_F(CliBadInputTest, SimulationNeverOverwritesACapture) {
+  const std::string session = CopyBase("existing");
+  const auto before = fs::last_write_time(session + "/session.json");
+  const RunResult result = RunThinslab("sim shadow-maps " + session + " --tau " + *dir_ / "small.exr");
+  EXPECT_NE(result.exit_code, 0);
+  EXPECT_NE(result.output.find("exists and is not empty"), std::string::npos) << result.output;
+  EXPECT_EQ(fs::last_write_time(session + "/session.json"), before);
+}
+
 TEST_F(CliBadInputTest, FramesOfDifferentSizes) {
   const std::string session = CopyBase("different_sizes");
   const std::string file = FirstFrameOfKind(ReadManifest(session), "reference");
