@@ -14,6 +14,7 @@ packages=(
   libgoogle-glog-dev
   libgflags-dev
   libopencv-dev
+  opencv-doc
   libopenexr-dev
   libaravis-dev
   libusb-1.0-0-dev
