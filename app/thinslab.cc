@@ -30,9 +30,12 @@ const std::vector<Command>& Commands() {
       {"help", RunHelp, "list the commands"},
       {"version", RunVersion, "print version and git hash"},
       {"info", thinslab::RunInfo, "validate a capture session and summarise it"},
+      {"acquire", thinslab::RunAcquire, "run a capture session on a rig (default: the simulated rig)"},
       {"sim", thinslab::RunSim, "simulate a capture session (sim shadow-maps | sim laser | sim pattern)"},
+      {"calib", thinslab::RunCalib, "calibrate camera, response, HDR, dots, flat field"},
       {"fit", thinslab::RunFit, "fit a model to a capture (fit tau | fit phase)"},
       {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy"},
+      {"synth", thinslab::RunSynth, "synthesize contamination layers from measured prototypes"},
       {"charts", thinslab::RunCharts, "model-vs-Monte-Carlo charts of the optics models (docs/models)"},
   };
   return commands;
