@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <string>
 
 #include "core/image.h"
@@ -27,6 +28,9 @@ class Camera {
   // Cameras round exposures: `applied_us` receives the value read back from the device.
   virtual Status SetExposure(double requested_us, double* applied_us) = 0;
   virtual Status Capture(CapturedFrame* frame) = 0;
+  // Cumulative transport statistics since Open (e.g. "completed_buffers", "failed_buffers",
+  // "missing_packets", "resent_packets", "timeouts"), recorded in the capture manifest.
+  virtual std::map<std::string, double> statistics() const { return {}; }
 };
 
 }  // namespace thinslab
