@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -14,7 +15,7 @@
 namespace thinslab {
 
 constexpr int kSessionFormatMajor = 1;
-constexpr int kSessionFormatMinor = 0;
+constexpr int kSessionFormatMinor = 1;  // 1.1: stream_statistics, acquisition.
 constexpr char kSessionManifestName[] = "session.json";
 
 // OpenCV pinhole camera with distortion (k1, k2, p1, p2[, k3]); pixel centres at
@@ -34,6 +35,10 @@ struct CameraInfo {
   double black_level_dn = 0;       // Subtracted before any radiometry.
   double saturation_dn = 0;        // Values >= this are saturated (raw DN, before black level).
   double gain_e_per_dn = 0;        // Conversion gain; 0 if unknown.
+  // Optional transport statistics of the capture (name -> count or value), e.g.
+  // "completed_buffers", "failed_buffers", "missing_packets", "resent_packets", "timeouts",
+  // "packet_size_bytes" from Camera::statistics(); empty for simulated or imported captures.
+  std::map<std::string, double> stream_statistics;
 };
 
 struct SampleInfo {
@@ -109,6 +114,27 @@ struct FrameRecord {
   std::string error;          // Device message when status != ok.
 };
 
+// Bookkeeping written by `thinslab acquire` (docs/format.md, section 2.5): what happened to the
+// session, so an interrupted or failed capture can be resumed and audited. Optional; absent in
+// simulated and hand-written captures.
+struct AcquisitionEvent {
+  std::string time_utc;  // ISO 8601.
+  std::string event;     // "started", "resumed", "completed", "failed", "interrupted".
+  std::string device;    // Device a failure names, e.g. "camera 'cam0' (aravis:10.0.0.2)"; else "".
+  std::string message;
+  int frames = 0;        // Frame entries in the manifest when the event was recorded.
+};
+
+struct AcquisitionInfo {
+  bool present = false;
+  std::string state;         // "running", "complete", "failed", "interrupted".
+  std::string plan;          // Kind and options that fix the frame plan; a resume must match it.
+  int planned_frames = 0;    // Usable frames the plan produces.
+  int camera_captures = 0;   // Capture calls made on the camera (usable, failed and discarded).
+  int discarded_frames = 0;  // Captured but not counted: the displayed change was not seen yet.
+  std::vector<AcquisitionEvent> events;
+};
+
 struct Session {
   int format_major = kSessionFormatMajor;
   int format_minor = kSessionFormatMinor;
@@ -118,6 +144,7 @@ struct Session {
   std::string software;  // Program that wrote the capture.
   RigInfo rig;
   std::vector<FrameRecord> frames;
+  AcquisitionInfo acquisition;  // Present only in captures written by `thinslab acquire`.
 
   const CameraInfo* FindCamera(const std::string& id) const;
   // Frames of one kind (and sample state, if non-empty) with status ok or retried.

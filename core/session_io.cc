@@ -80,6 +80,10 @@ const std::vector<std::string>& SampleStates() {
   static const std::vector<std::string> names = {"contaminated", "clean", "none"};
   return names;
 }
+const std::vector<std::string>& AcquisitionStates() {
+  static const std::vector<std::string> names = {"running", "complete", "failed", "interrupted"};
+  return names;
+}
 const std::vector<std::string>& ContaminantSides() {
   static const std::vector<std::string> names = {"board", "projector"};
   return names;
@@ -321,6 +325,7 @@ class ManifestParser {
   Status ParseCamera(const Json& j, const std::string& path, CameraInfo* camera) const;
   Status ParseRig(const Json& j, const std::string& path, RigInfo* rig) const;
   Status ParseFrame(const Json& j, const std::string& path, FrameRecord* frame) const;
+  Status ParseAcquisition(const Json& j, const std::string& path, AcquisitionInfo* acquisition) const;
 
   std::string file_;
 };
@@ -348,6 +353,17 @@ Status ManifestParser::ParseCamera(const Json& j, const std::string& path,
       Number(j, path, "saturation_dn", Need::kRequired, &camera->saturation_dn));
   THINSLAB_RETURN_IF_ERROR(
       Number(j, path, "gain_e_per_dn", Need::kOptional, &camera->gain_e_per_dn));
+  // Optional {"name": number, ...}; absent in manifests written before it existed.
+  const Json* stats = nullptr;
+  THINSLAB_RETURN_IF_ERROR(Object(j, path, "stream_statistics", Need::kOptional, &stats));
+  if (stats != nullptr) {
+    const std::string stats_path = Child(path, "stream_statistics");
+    for (auto it = stats->begin(); it != stats->end(); ++it) {
+      double value = 0;
+      THINSLAB_RETURN_IF_ERROR(NumberValue(it.value(), Child(stats_path, it.key()), &value));
+      camera->stream_statistics[it.key()] = value;
+    }
+  }
   return Status::Ok();
 }
 
@@ -477,6 +493,33 @@ Status ManifestParser::ParseFrame(const Json& j, const std::string& path,
   return Status::Ok();
 }
 
+Status ManifestParser::ParseAcquisition(const Json& j, const std::string& path,
+                                        AcquisitionInfo* acquisition) const {
+  acquisition->present = true;
+  THINSLAB_RETURN_IF_ERROR(String(j, path, "state", Need::kRequired, &acquisition->state));
+  THINSLAB_RETURN_IF_ERROR(String(j, path, "plan", Need::kOptional, &acquisition->plan));
+  THINSLAB_RETURN_IF_ERROR(Int(j, path, "planned_frames", Need::kOptional, &acquisition->planned_frames));
+  THINSLAB_RETURN_IF_ERROR(Int(j, path, "camera_captures", Need::kOptional, &acquisition->camera_captures));
+  THINSLAB_RETURN_IF_ERROR(Int(j, path, "discarded_frames", Need::kOptional, &acquisition->discarded_frames));
+  const Json* events = nullptr;
+  THINSLAB_RETURN_IF_ERROR(Array(j, path, "events", Need::kOptional, &events));
+  if (events == nullptr) return Status::Ok();
+  const std::string events_path = Child(path, "events");
+  acquisition->events.assign(events->size(), AcquisitionEvent());
+  for (size_t i = 0; i < events->size(); ++i) {
+    const Json& e = (*events)[i];
+    const std::string ep = Element(events_path, i);
+    if (!e.is_object()) return ExpectedType(ep, "an object", e);
+    AcquisitionEvent& event = acquisition->events[i];
+    THINSLAB_RETURN_IF_ERROR(String(e, ep, "time_utc", Need::kRequired, &event.time_utc));
+    THINSLAB_RETURN_IF_ERROR(String(e, ep, "event", Need::kRequired, &event.event));
+    THINSLAB_RETURN_IF_ERROR(String(e, ep, "device", Need::kOptional, &event.device));
+    THINSLAB_RETURN_IF_ERROR(String(e, ep, "message", Need::kOptional, &event.message));
+    THINSLAB_RETURN_IF_ERROR(Int(e, ep, "frames", Need::kOptional, &event.frames));
+  }
+  return Status::Ok();
+}
+
 Status ManifestParser::Parse(const Json& root, Session* session) const {
   if (!root.is_object()) return ExpectedType("", "an object", root);
 
@@ -514,6 +557,11 @@ Status ManifestParser::Parse(const Json& root, Session* session) const {
   session->frames.assign(frames->size(), FrameRecord());
   for (size_t i = 0; i < frames->size(); ++i) {
     THINSLAB_RETURN_IF_ERROR(ParseFrame((*frames)[i], Element("frames", i), &session->frames[i]));
+  }
+  const Json* acquisition = nullptr;
+  THINSLAB_RETURN_IF_ERROR(Object(root, "", "acquisition", Need::kOptional, &acquisition));
+  if (acquisition != nullptr) {
+    THINSLAB_RETURN_IF_ERROR(ParseAcquisition(*acquisition, "acquisition", &session->acquisition));
   }
   return Status::Ok();
 }
@@ -563,6 +611,11 @@ OrderedJson SessionToJson(const Session& session) {
     cj["black_level_dn"] = c.black_level_dn;
     cj["saturation_dn"] = c.saturation_dn;
     cj["gain_e_per_dn"] = c.gain_e_per_dn;
+    if (!c.stream_statistics.empty()) {
+      OrderedJson stats = OrderedJson::object();
+      for (const auto& [name, value] : c.stream_statistics) stats[name] = value;
+      cj["stream_statistics"] = std::move(stats);
+    }
     cameras.push_back(std::move(cj));
   }
   rig_json["cameras"] = std::move(cameras);
@@ -628,6 +681,27 @@ OrderedJson SessionToJson(const Session& session) {
     frames.push_back(std::move(fj));
   }
   root["frames"] = std::move(frames);
+  if (session.acquisition.present) {
+    const AcquisitionInfo& acq = session.acquisition;
+    OrderedJson aj = OrderedJson::object();
+    aj["state"] = acq.state;
+    aj["plan"] = acq.plan;
+    aj["planned_frames"] = acq.planned_frames;
+    aj["camera_captures"] = acq.camera_captures;
+    aj["discarded_frames"] = acq.discarded_frames;
+    OrderedJson events = OrderedJson::array();
+    for (const AcquisitionEvent& e : acq.events) {
+      OrderedJson ej = OrderedJson::object();
+      ej["time_utc"] = e.time_utc;
+      ej["event"] = e.event;
+      ej["device"] = e.device;
+      ej["message"] = e.message;
+      ej["frames"] = e.frames;
+      events.push_back(std::move(ej));
+    }
+    aj["events"] = std::move(events);
+    root["acquisition"] = std::move(aj);
+  }
   return root;
 }
 
@@ -907,6 +981,18 @@ Status ValidateSession(const Session& session, const std::string& session_dir) {
                                     FrameStatusName(f.status) + ")");
     }
   }
+  if (session.acquisition.present) {
+    const AcquisitionInfo& acq = session.acquisition;
+    if (!Contains(AcquisitionStates(), acq.state)) {
+      return error("acquisition.state", "must be " + OneOf(AcquisitionStates()) + ", got " + Quote(acq.state));
+    }
+    if (acq.planned_frames < 0) {
+      return error("acquisition.planned_frames", "must be >= 0, got " + std::to_string(acq.planned_frames));
+    }
+    if (acq.camera_captures < 0 || acq.discarded_frames < 0) {
+      return error("acquisition", "camera_captures and discarded_frames must be >= 0");
+    }
+  }
   return Status::Ok();
 }
 
@@ -984,6 +1070,18 @@ std::string SummarizeSession(const Session& session) {
   }
   if (usable > 0) {
     out << "Exposure: " << Num(min_exposure) << " .. " << Num(max_exposure) << " us\n";
+  }
+  if (session.acquisition.present) {
+    const AcquisitionInfo& acq = session.acquisition;
+    out << "Acquisition: " << acq.state << ", " << usable << " of " << acq.planned_frames
+        << " planned frames, " << acq.camera_captures << " captures (" << acq.discarded_frames
+        << " discarded before the display change was seen)\n";
+    for (const AcquisitionEvent& e : acq.events) {
+      out << "  " << e.time_utc << " " << e.event << " at " << e.frames << " frames";
+      if (!e.device.empty()) out << ": " << e.device;
+      if (!e.message.empty()) out << ": " << e.message;
+      out << "\n";
+    }
   }
   return out.str();
 }

@@ -301,7 +301,7 @@ TEST_F(SessionIoTest, WritesTheDocumentedLayout) {
   ASSERT_TRUE(ReadFileToString(manifest(), &text).ok());
   const nlohmann::json j = nlohmann::json::parse(text);
   EXPECT_EQ(j["format"], "thinslab-session");
-  EXPECT_EQ(j["format_version"], "1.0");
+  EXPECT_EQ(j["format_version"], "1.1");
   EXPECT_EQ(j["rig"]["cameras"][0]["cam_from_sample"]["rotation_wxyz"].size(), 4u);
   EXPECT_EQ(j["rig"]["cameras"][0]["cam_from_sample"]["translation_m"].size(), 3u);
   EXPECT_EQ(j["frames"][0]["camera"], "cam0");
@@ -698,6 +698,21 @@ TEST_F(SessionIoTest, WriteRawFrameRefusesBadInput) {
   ASSERT_FALSE(status.ok());
   EXPECT_THAT(status.message(), AllOf(HasSubstr(path), HasSubstr("(2, 1)")));
   EXPECT_FALSE(FileExists(path));
+}
+
+TEST_F(SessionIoTest, StreamStatisticsRoundTripAndAreOptional) {
+  session_.rig.cameras[0].stream_statistics = {{"completed_buffers", 12}, {"missing_packets", 3}};
+  ASSERT_TRUE(WriteSession(dir_, session_).ok());
+  Session read;
+  const Status read_status = ReadSession(dir_, &read);
+  ASSERT_TRUE(read_status.ok()) << read_status.message();
+  EXPECT_EQ(read.rig.cameras[0].stream_statistics, session_.rig.cameras[0].stream_statistics);
+  EXPECT_TRUE(read.rig.cameras[1].stream_statistics.empty());  // Absent: still a valid manifest.
+  const Status status = ReadEdited(
+      [](nlohmann::json* j) { (*j)["rig"]["cameras"][0]["stream_statistics"]["missing_packets"] = "3"; });
+  ASSERT_FALSE(status.ok());
+  EXPECT_THAT(status.message(),
+              HasSubstr("rig.cameras[0].stream_statistics.missing_packets: expected a number, got string"));
 }
 
 }  // namespace

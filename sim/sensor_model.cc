@@ -15,6 +15,8 @@ bool SimSensorOptions::Check(std::string* error) const {
     msg << "SimSensorOptions::read_noise_e = " << read_noise_e << ". Violated constraint: >= 0";
   } else if (bit_depth < 8 || bit_depth > 16) {
     msg << "SimSensorOptions::bit_depth = " << bit_depth << ". Violated constraint: 8..16";
+  } else if (!(response_gamma > 0 && response_gamma < 10)) {
+    msg << "SimSensorOptions::response_gamma = " << response_gamma << ". Violated constraint: (0, 10)";
   } else if (!(black_level_dn >= 0 && black_level_dn < (1 << bit_depth) / 2)) {
     msg << "SimSensorOptions::black_level_dn = " << black_level_dn << ". Violated constraint: [0, 2^bit_depth / 2)";
   } else {
@@ -22,6 +24,54 @@ bool SimSensorOptions::Check(std::string* error) const {
   }
   *error = msg.str();
   return false;
+}
+
+namespace {
+
+double GammaCurve(double s, double gamma) {
+  constexpr double kOffset = 0.01;  // Keeps the slope at 0 finite (like Rec. 709's linear toe).
+  const double p = 1.0 / gamma;
+  const double lo = std::pow(kOffset, p), hi = std::pow(1.0 + kOffset, p);
+  return (std::pow(s + kOffset, p) - lo) / (hi - lo);
+}
+
+double CurveOnUnitInterval(SimResponseCurve curve, double gamma, double s) {
+  switch (curve) {
+    case SimResponseCurve::kLinear:
+      return s;
+    case SimResponseCurve::kGamma:
+      return GammaCurve(s, gamma);
+    case SimResponseCurve::kSCurve: {
+      const double g = GammaCurve(s, gamma);
+      return 0.5 * (g + g * g * (3.0 - 2.0 * g));
+    }
+  }
+  return s;
+}
+
+}  // namespace
+
+double SimSensorOptions::ResponseCurve(double s) const {
+  if (response == SimResponseCurve::kLinear) return s;
+  if (s >= 0) return CurveOnUnitInterval(response, response_gamma, std::min(s, 1.0)) + std::max(s - 1.0, 0.0);
+  const double h = 1e-6;
+  const double slope0 = CurveOnUnitInterval(response, response_gamma, h) / h;
+  return slope0 * s;
+}
+
+double SimSensorOptions::InverseResponseCurve(double v) const {
+  if (response == SimResponseCurve::kLinear) return v;
+  if (v <= 0) {
+    const double h = 1e-6;
+    return v / (CurveOnUnitInterval(response, response_gamma, h) / h);
+  }
+  if (v >= 1) return 1.0 + (v - 1.0);
+  double lo = 0, hi = 1;
+  for (int it = 0; it < 60; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (CurveOnUnitInterval(response, response_gamma, mid) < v ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
 }
 
 Image ApplySensor(const Image& electrons, const SimSensorOptions& options, uint64_t seed) {
@@ -40,7 +90,13 @@ Image ApplySensor(const Image& electrons, const SimSensorOptions& options, uint6
       }
       e += options.read_noise_e * normal(rng);
     }
-    const double dn = std::round(e / gain + options.black_level_dn);
+    // The response acts on the collected signal (after shot and read noise), as a camera's
+    // analogue/digital tone curve does; quantisation follows it.
+    const double range_dn = max_dn - options.black_level_dn;
+    const double signal_dn = options.response == SimResponseCurve::kLinear
+                                 ? e / gain
+                                 : range_dn * options.ResponseCurve(e / options.full_well_e);
+    const double dn = std::round(signal_dn + options.black_level_dn);
     raw.data()[i] = static_cast<float>(std::clamp(dn, 0.0, max_dn));
   }
   return raw;

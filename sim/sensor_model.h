@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Camera sensor: photo-electrons -> shot noise (Poisson), read noise (Gaussian), conversion
-// gain, black level, quantisation to bit_depth and clipping at full scale (saturation).
+// gain, black level, an optional nonlinear camera response curve, quantisation to bit_depth
+// and clipping at full scale (saturation).
 #pragma once
 
 #include <cstdint>
@@ -11,12 +12,30 @@
 
 namespace thinslab {
 
+// Shape of the camera response: the map from the (noisy) collected signal, as a fraction s of
+// full well, to the fraction v of the DN range above black. kLinear is the default (raw
+// sensors); the others stand in for cameras that apply a tone curve, so that radiometric
+// calibration (calib/response_recovery) has a known nonlinear curve to recover.
+enum class SimResponseCurve {
+  kLinear,  // v = s.
+  kGamma,   // v = ((s + a)^(1/gamma) - a^(1/gamma)) / ((1 + a)^(1/gamma) - a^(1/gamma)), a = 0.01.
+  kSCurve,  // v = (g + S(g)) / 2, g the kGamma curve, S(x) = 3x^2 - 2x^3 (smoothstep).
+};
+
 struct SimSensorOptions {
   double full_well_e = 30000;  // Electrons at full scale.
   double read_noise_e = 6;     // RMS electrons.
   int bit_depth = 12;
   double black_level_dn = 64;
   bool enable_noise = true;
+  SimResponseCurve response = SimResponseCurve::kLinear;
+  double response_gamma = 2.2;  // Exponent of kGamma / kSCurve; > 0.
+
+  // v = f(s) for the configured curve: f(0) = 0, f(1) = 1, strictly increasing on [0, 1],
+  // continued linearly below 0 (noise under black) with the slope at 0.
+  double ResponseCurve(double s) const;
+  // s = f^-1(v), by bisection on [0, 1] (linear continuation outside).
+  double InverseResponseCurve(double v) const;
 
   double gain_e_per_dn() const { return full_well_e / ((1 << bit_depth) - 1 - black_level_dn); }
   double saturation_dn() const { return (1 << bit_depth) - 1; }

@@ -42,6 +42,10 @@ class SimBoardCamera : public Camera {
 
   // Expected electrons at the current exposure (no noise).
   Image RenderElectrons() const;
+  // The noise of capture n is seeded from (seed, n). A resumed acquisition sets the count of
+  // captures its earlier runs made, so the resumed frames are bit-identical to an
+  // uninterrupted run's (thinslab acquire --resume).
+  void set_frame_counter(uint64_t captures) { frame_counter_ = captures; }
 
  private:
   SimBoardCameraOptions options_;
