@@ -1,17 +1,404 @@
 // SPDX-License-Identifier: Apache-2.0
-// Placeholder until the geometric calibration commands land (issue #6).
+// Geometric calibration commands (issue #6; docs/models/geometric_calibration.md):
+//   thinslab calib camera IMAGES... | --images DIR   intrinsics + distortion -> OUT/rig.json
+//   thinslab calib pose SESSION                        cam_from_sample from "target" frames
+//   thinslab calib dots SESSION                        monitor dot positions and radiances
+// Each writes its section of rig.json (keeping the others) and a text report, atomically.
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <iostream>
+#include <sstream>
 
 #include "app/commands.h"
+#include "app/option_parser.h"
+#include "calib/camera_calibration.h"
+#include "calib/dot_geometry.h"
+#include "calib/plane_pose.h"
+#include "calib/rig_io.h"
+#include "core/file.h"
+#include "core/math.h"
+#include "core/session_io.h"
+#include "drivers/pattern_id.h"
 
 namespace thinslab {
 
-static int NotYet(const char* what) {
-  std::cerr << "thinslab calib " << what << ": not implemented yet\n";
-  return 2;
+namespace {
+
+constexpr char kRigFile[] = "rig.json";
+
+std::string Fmt(const char* format, double value) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), format, value);
+  return buf;
 }
-int RunCalibCamera(int, char**) { return NotYet("camera"); }
-int RunCalibPose(int, char**) { return NotYet("pose"); }
-int RunCalibDots(int, char**) { return NotYet("dots"); }
+
+// "9x6" -> inner corners.
+Status ParseBoard(const std::string& text, double square_mm, ChessboardSpec* board) {
+  int cols = 0, rows = 0;
+  char x = 0, extra = 0;
+  if (std::sscanf(text.c_str(), "%d%c%d%c", &cols, &x, &rows, &extra) != 3 || (x != 'x' && x != 'X')) {
+    return Status::Error("--board: expected <inner_cols>x<inner_rows> such as 9x6, got '" + text + "'");
+  }
+  board->inner_cols = cols;
+  board->inner_rows = rows;
+  board->square_m = square_mm * 1e-3;
+  return board->Check().WithContext("--board/--square-mm");
+}
+
+// Splits argv into "--option [value]" pairs for the parser and bare arguments (image paths).
+// Every option of `calib camera` takes a value, so "--name value" pairs can be recognised.
+void SplitArgs(int argc, char** argv, std::vector<char*>* options, std::vector<std::string>* bare) {
+  for (int i = 0; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg.rfind("--", 0) == 0) {
+      options->push_back(argv[i]);
+      if (arg.find('=') == std::string::npos && arg != "--help" && i + 1 < argc) options->push_back(argv[++i]);
+    } else {
+      bare->push_back(arg);
+    }
+  }
+}
+
+bool IsImageFile(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" || ext == ".bmp" ||
+         ext == ".exr" || ext == ".pgm";
+}
+
+Status CalibCamera(const std::vector<std::string>& paths, const CameraCalibrationOptions& options,
+                   const std::string& out_dir, const std::string& camera_id, CameraCalibrationResult* result) {
+  if (paths.empty()) return Status::Error("calib camera: no images given (IMAGES... or --images DIR)");
+  std::vector<NamedImage> images;
+  for (const std::string& p : paths) {
+    NamedImage named;
+    named.name = p;
+    THINSLAB_RETURN_IF_ERROR(LoadCalibrationImage(p, &named.image));
+    if (named.image.num_channels() != 1) return Status::Error(p + ": expected a single-channel image");
+    images.push_back(std::move(named));
+  }
+  THINSLAB_RETURN_IF_ERROR(CalibrateCameraFromImages(images, options, result));
+
+  THINSLAB_RETURN_IF_ERROR(CreateDirectories(out_dir));
+  const std::string rig_path = JoinPath(out_dir, kRigFile);
+  RigCalibration rig;
+  THINSLAB_RETURN_IF_ERROR(ReadRigCalibrationIfExists(rig_path, &rig));
+  RigCameraCalibration& c = rig.camera;
+  c.present = true;
+  c.camera_id = camera_id;
+  c.width_px = result->camera.width_px;
+  c.height_px = result->camera.height_px;
+  c.fx_px = result->camera.fx_px;
+  c.fy_px = result->camera.fy_px;
+  c.cx_px = result->camera.cx_px;
+  c.cy_px = result->camera.cy_px;
+  c.distortion = result->camera.distortion;
+  c.fx_std_px = result->fx_std_px;
+  c.fy_std_px = result->fy_std_px;
+  c.cx_std_px = result->cx_std_px;
+  c.cy_std_px = result->cy_std_px;
+  c.distortion_std = result->distortion_std;
+  c.rms_reprojection_px = result->rms_px;
+  c.num_views = result->num_views_used;
+  c.board_inner_cols = options.board.inner_cols;
+  c.board_inner_rows = options.board.inner_rows;
+  c.board_square_m = options.board.square_m;
+  // A new camera calibration invalidates a pose estimated with older intrinsics.
+  rig.pose = RigPoseCalibration();
+
+  std::ostringstream report, csv;
+  report << "thinslab calib camera: " << result->num_views_used << " of " << paths.size() << " views used, board "
+         << options.board.inner_cols << "x" << options.board.inner_rows << " inner corners, "
+         << options.board.square_m * 1e3 << " mm squares\n"
+         << "image " << c.width_px << " x " << c.height_px << " px\n"
+         << "fx = " << Fmt("%.4f", c.fx_px) << " +- " << Fmt("%.4f", c.fx_std_px) << " px\n"
+         << "fy = " << Fmt("%.4f", c.fy_px) << " +- " << Fmt("%.4f", c.fy_std_px) << " px\n"
+         << "cx = " << Fmt("%.4f", c.cx_px) << " +- " << Fmt("%.4f", c.cx_std_px) << " px (OpenCV convention)\n"
+         << "cy = " << Fmt("%.4f", c.cy_px) << " +- " << Fmt("%.4f", c.cy_std_px) << " px (OpenCV convention)\n";
+  const char* names[] = {"k1", "k2", "p1", "p2", "k3"};
+  for (size_t k = 0; k < c.distortion.size(); ++k) {
+    report << names[k] << " = " << Fmt("%.6g", c.distortion[k]) << " +- " << Fmt("%.3g", c.distortion_std[k]) << "\n";
+  }
+  report << "RMS reprojection error = " << Fmt("%.4f", c.rms_reprojection_px) << " px\n\nper view:\n";
+  csv << "view,detected,rms_px,max_px,error\n";
+  for (const CalibrationViewReport& v : result->views) {
+    if (v.detected) {
+      report << "  " << v.name << ": rms " << Fmt("%.4f", v.rms_px) << " px, max " << Fmt("%.4f", v.max_px) << " px\n";
+      csv << v.name << ",1," << Fmt("%.6f", v.rms_px) << "," << Fmt("%.6f", v.max_px) << ",\n";
+    } else {
+      report << "  " << v.name << ": skipped: " << v.error << "\n";
+      csv << v.name << ",0,,,\"" << v.error << "\"\n";
+    }
+  }
+  THINSLAB_RETURN_IF_ERROR(WriteRigCalibration(rig_path, rig));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out_dir, "camera_calibration.txt"), report.str()));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out_dir, "camera_views.csv"), csv.str()));
+  std::cout << report.str() << "wrote " << rig_path << "\n";
+  return Status::Ok();
+}
+
+// The session camera with rig.json's calibration applied (intrinsics from --rig or
+// SESSION/calib/rig.json if it has a camera section; pose likewise if `with_pose`).
+Status SessionCamera(const std::string& session_dir, const Session& session, const std::string& camera_id,
+                     const std::string& rig_path, bool with_pose, CameraInfo* camera, RigCalibration* rig) {
+  const CameraInfo* cam = session.FindCamera(camera_id);
+  if (cam == nullptr) return Status::Error(session_dir + ": no camera '" + camera_id + "' in rig.cameras");
+  *camera = *cam;
+  THINSLAB_RETURN_IF_ERROR(ReadRigCalibrationIfExists(rig_path, rig));
+  if (!with_pose) rig->pose.present = false;
+  if (rig->camera.present && rig->camera.camera_id != camera_id) {
+    return Status::Error(rig_path + ": camera.id is '" + rig->camera.camera_id + "', the frames use '" + camera_id + "'");
+  }
+  return ApplyRigCalibration(*rig, camera).WithContext(rig_path);
+}
+
+}  // namespace
+
+int RunCalibCamera(int argc, char** argv) {
+  std::vector<char*> option_args;
+  std::vector<std::string> images;
+  SplitArgs(argc, argv, &option_args, &images);
+  std::string board_text = "9x6", images_dir, out_dir = ".", camera_id = "cam0";
+  double square_mm = 25;
+  CameraCalibrationOptions options;
+  OptionParser parser("calib camera");
+  parser.AddString("images", &images_dir, "folder of calibration photographs (instead of listing IMAGES...)");
+  parser.AddString("board", &board_text, "inner corners <cols>x<rows> of the chessboard");
+  parser.AddDouble("square-mm", &square_mm, "chessboard square size [mm]");
+  parser.AddInt("distortion-coeffs", &options.num_distortion, "4 (k1 k2 p1 p2) or 5 (+ k3)");
+  parser.AddInt("min-views", &options.min_views, "fewest views with a detected board");
+  parser.AddInt("subpix-window-px", &options.subpix_half_window_px, "cornerSubPix half-window [px]; 0 = adaptive");
+  parser.AddString("camera-id", &camera_id, "camera id written to rig.json");
+  parser.AddString("out", &out_dir, "output folder for rig.json and the reports");
+  Status status = parser.Parse(static_cast<int>(option_args.size()), option_args.data());
+  if (parser.help_requested()) {
+    std::cout << "usage: thinslab calib camera IMAGES... | --images DIR [options]\n" << parser.Usage();
+    return 0;
+  }
+  if (status.ok()) status = ParseBoard(board_text, square_mm, &options.board);
+  if (status.ok() && !images_dir.empty()) {
+    if (!images.empty()) {
+      status = Status::Error("calib camera: give IMAGES... or --images DIR, not both");
+    } else if (!DirectoryExists(images_dir)) {
+      status = Status::Error(images_dir + ": --images: no such folder");
+    } else {
+      for (const auto& entry : std::filesystem::directory_iterator(images_dir)) {
+        if (entry.is_regular_file() && IsImageFile(entry.path().string())) images.push_back(entry.path().string());
+      }
+      std::sort(images.begin(), images.end());
+      if (images.empty()) status = Status::Error(images_dir + ": --images: no PNG/JPEG/TIFF/EXR files");
+    }
+  }
+  CameraCalibrationResult result;
+  if (status.ok()) status = CalibCamera(images, options, out_dir, camera_id, &result);
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  return 0;
+}
+
+int RunCalibPose(int argc, char** argv) {
+  std::string session_dir, board_text = "9x6", rig_path, offset_text = "0,0,0", kind = "target";
+  double square_mm = 25;
+  OptionParser parser("calib pose");
+  parser.AddPositional("SESSION", &session_dir, "capture session with a chessboard frame on the sample plane");
+  parser.AddString("board", &board_text, "inner corners <cols>x<rows> (inner_cols + inner_rows must be odd)");
+  parser.AddDouble("square-mm", &square_mm, "chessboard square size [mm]");
+  parser.AddString("board-offset-mm", &offset_text, "x,y,z of inner corner (0,0) in the sample frame [mm]");
+  parser.AddString("kind", &kind, "frame kind holding the target");
+  parser.AddString("rig", &rig_path, "rig.json with the camera intrinsics (default SESSION/calib/rig.json)");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  auto run = [&]() -> Status {
+    THINSLAB_RETURN_IF_ERROR(status);
+    ChessboardSpec board;
+    THINSLAB_RETURN_IF_ERROR(ParseBoard(board_text, square_mm, &board));
+    Rigid3d sample_from_board;
+    double ox = 0, oy = 0, oz = 0;
+    char extra = 0;
+    if (std::sscanf(offset_text.c_str(), "%lf,%lf,%lf%c", &ox, &oy, &oz, &extra) != 3) {
+      return Status::Error("--board-offset-mm: expected x,y,z, got '" + offset_text + "'");
+    }
+    sample_from_board.translation = Eigen::Vector3d(ox, oy, oz) * 1e-3;
+    Session session;
+    THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
+    const std::vector<const FrameRecord*> frames = session.UsableFrames(kind);
+    if (frames.empty()) {
+      return Status::Error(JoinPath(session_dir, kSessionManifestName) + ": frames: no usable frame of kind '" + kind +
+                           "' (a chessboard lying on the sample plane)");
+    }
+    const std::string calib_dir = JoinPath(session_dir, "calib");
+    const std::string out_rig = JoinPath(calib_dir, kRigFile);
+    if (!rig_path.empty() && !FileExists(rig_path)) return Status::Error(rig_path + ": --rig: no such file");
+    if (rig_path.empty()) rig_path = out_rig;
+    CameraInfo camera;
+    RigCalibration rig;
+    THINSLAB_RETURN_IF_ERROR(SessionCamera(session_dir, session, frames[0]->camera_id, rig_path, false, &camera, &rig));
+    // The first usable target frame gives the pose; further ones are reported for consistency.
+    std::ostringstream report;
+    PlanePoseResult first;
+    for (size_t k = 0; k < frames.size(); ++k) {
+      Image image;
+      THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *frames[k], &image));
+      PlanePoseResult pose;
+      THINSLAB_RETURN_IF_ERROR(EstimateSamplePoseFromChessboard(camera, image, board, sample_from_board, &pose)
+                                   .WithContext(JoinPath(session_dir, frames[k]->file)));
+      const Eigen::Vector3d eye = pose.cam_from_plane.Inverse().translation;
+      report << frames[k]->file << ": rms " << Fmt("%.4f", pose.rms_px) << " px, max " << Fmt("%.4f", pose.max_px)
+             << " px, camera centre in sample (" << Fmt("%.5f", eye.x()) << ", " << Fmt("%.5f", eye.y()) << ", "
+             << Fmt("%.5f", eye.z()) << ") m, rotation std " << Fmt("%.4f", pose.rotation_std_rad.norm() * 180 / kPi)
+             << " deg, translation std " << Fmt("%.4f", pose.translation_std_m.norm() * 1e3) << " mm\n";
+      if (k == 0) first = pose;
+    }
+    RigCalibration out;
+    THINSLAB_RETURN_IF_ERROR(ReadRigCalibrationIfExists(out_rig, &out));
+    if (rig.camera.present) out.camera = rig.camera;  // Intrinsics the pose was computed with.
+    out.pose.present = true;
+    out.pose.cam_from_sample = first.cam_from_plane;
+    out.pose.rms_reprojection_px = first.rms_px;
+    out.pose.max_reprojection_px = first.max_px;
+    out.pose.num_points = first.num_points;
+    out.pose.rotation_std_rad = first.rotation_std_rad;
+    out.pose.translation_std_m = first.translation_std_m;
+    THINSLAB_RETURN_IF_ERROR(CreateDirectories(calib_dir));
+    THINSLAB_RETURN_IF_ERROR(WriteRigCalibration(out_rig, out));
+    const std::string text = std::string("thinslab calib pose: intrinsics from ") +
+                             (rig.camera.present ? rig_path : std::string("the manifest")) + "\n" + report.str();
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(calib_dir, "pose_report.txt"), text));
+    std::cout << text << "wrote " << out_rig << "\n";
+    return Status::Ok();
+  };
+  status = run();
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  return 0;
+}
+
+int RunCalibDots(int argc, char** argv) {
+  std::string session_dir, rig_path, kind = "all_dots";
+  DotGeometryOptions options;
+  OptionParser parser("calib dots");
+  parser.AddPositional("SESSION", &session_dir, "dot-scan session with an all-dots frame taken without the sample");
+  parser.AddDouble("dot-radius-px", &options.dot_radius_px, "radius of the displayed dots [monitor px]");
+  parser.AddDouble("threshold-sigma", &options.threshold_sigma, "detection threshold above background [noise sigmas]");
+  parser.AddDouble("threshold-fraction", &options.threshold_fraction,
+                   "detection threshold as a fraction of the brightest dot's 3x3 mean");
+  parser.AddInt("window-margin-px", &options.window_margin_px, "centroid window margin around each blob [px]");
+  parser.AddString("kind", &kind, "frame kind of the all-dots frames");
+  parser.AddString("rig", &rig_path, "rig.json with intrinsics and pose (default SESSION/calib/rig.json)");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  auto run = [&]() -> Status {
+    THINSLAB_RETURN_IF_ERROR(status);
+    Session session;
+    THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
+    const std::string manifest = JoinPath(session_dir, kSessionManifestName);
+    if (!session.rig.monitor.present) return Status::Error(manifest + ": rig.monitor: missing (the dot monitor geometry)");
+    std::vector<const FrameRecord*> frames = session.UsableFrames(kind, "none");
+    if (frames.empty()) {
+      return Status::Error(manifest + ": frames: no usable frame of kind '" + kind +
+                           "' with sample_state \"none\" (all dots shown, no sample)");
+    }
+    const std::string calib_dir = JoinPath(session_dir, "calib");
+    const std::string out_rig = JoinPath(calib_dir, kRigFile);
+    if (!rig_path.empty() && !FileExists(rig_path)) return Status::Error(rig_path + ": --rig: no such file");
+    if (rig_path.empty()) rig_path = out_rig;
+    CameraInfo camera;
+    RigCalibration rig;
+    THINSLAB_RETURN_IF_ERROR(SessionCamera(session_dir, session, frames[0]->camera_id, rig_path, true, &camera, &rig));
+    // Of a bracket of all-dots frames, the longest exposure without saturated pixels gives the
+    // best signal; if all saturate, the shortest (positions stay usable, radiances are flagged).
+    std::sort(frames.begin(), frames.end(),
+              [](const FrameRecord* a, const FrameRecord* b) { return a->exposure_time_us > b->exposure_time_us; });
+    const double saturation = camera.saturation_dn > 0 ? camera.saturation_dn - camera.black_level_dn : 0;
+    const FrameRecord* chosen = nullptr;
+    Image image;
+    for (const FrameRecord* f : frames) {
+      if (f->camera_id != camera.id) continue;
+      THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *f, &image));
+      const float peak = *std::max_element(image.data().begin(), image.data().end());
+      chosen = f;
+      if (saturation <= 0 || peak < saturation) break;
+    }
+    PatternSpec spec;
+    THINSLAB_RETURN_IF_ERROR(ParsePatternId(chosen->light.projector_pattern, &spec)
+                                 .WithContext(manifest + ": frames[" + std::to_string(chosen->index) +
+                                              "].light.projector_pattern"));
+    if (spec.kind != PatternSpec::Kind::kDots || spec.dots.size() < 4) {
+      return Status::Error(manifest + ": frames[" + std::to_string(chosen->index) +
+                           "].light.projector_pattern: expected a \"dots:...\" grid of at least 4 dots, got '" +
+                           chosen->light.projector_pattern + "'");
+    }
+    std::vector<Eigen::Vector2d> displayed;
+    for (const PatternSpec::Dot& d : spec.dots) displayed.emplace_back(d.x_px, d.y_px);
+    DotGeometryResult result;
+    THINSLAB_RETURN_IF_ERROR(CalibrateDotGeometry(image, chosen->exposure_time_us, saturation, camera,
+                                                  session.rig.monitor, displayed, options, &result)
+                                 .WithContext(JoinPath(session_dir, chosen->file)));
+    RigCalibration out;
+    THINSLAB_RETURN_IF_ERROR(ReadRigCalibrationIfExists(out_rig, &out));
+    if (rig.camera.present) out.camera = rig.camera;
+    if (rig.pose.present) out.pose = rig.pose;
+    RigMonitorCalibration& m = out.monitor;
+    m.present = true;
+    m.sample_from_monitor = result.sample_from_monitor;
+    m.pixel_pitch_m = session.rig.monitor.pixel_pitch_m;
+    m.width_px = session.rig.monitor.width_px;
+    m.height_px = session.rig.monitor.height_px;
+    m.dot_radius_px = options.dot_radius_px;
+    m.rms_residual_m = result.rms_residual_m;
+    m.max_residual_m = result.max_residual_m;
+    m.homography_rms_px = result.homography_rms_px;
+    m.dots = result.dots;
+    int saturated = 0;
+    std::ostringstream csv;
+    csv << "dot_x_px,dot_y_px,detected,centroid_x_px,centroid_y_px,x_m,y_m,z_m,radiance_dn_per_us,saturated,residual_m\n";
+    for (const DotRecord& d : result.dots) {
+      saturated += d.saturated ? 1 : 0;
+      csv << d.dot_px.x() << "," << d.dot_px.y() << "," << (d.detected ? 1 : 0) << "," << Fmt("%.4f", d.centroid_px.x())
+          << "," << Fmt("%.4f", d.centroid_px.y()) << "," << Fmt("%.7f", d.position_in_sample_m.x()) << ","
+          << Fmt("%.7f", d.position_in_sample_m.y()) << "," << Fmt("%.7f", d.position_in_sample_m.z()) << ","
+          << Fmt("%.6g", d.radiance_dn_per_us) << "," << (d.saturated ? 1 : 0) << "," << Fmt("%.3e", d.residual_m)
+          << "\n";
+    }
+    std::ostringstream report;
+    report << "thinslab calib dots: frame " << chosen->file << " (exposure " << chosen->exposure_time_us << " us)\n"
+           << "intrinsics/pose from " << (rig.camera.present || rig.pose.present ? rig_path : "the manifest") << "\n"
+           << "displayed dots " << displayed.size() << ", blobs " << result.num_blobs << ", matched "
+           << result.num_matched << ", unmatched blobs " << result.num_unmatched_blobs << ", saturated " << saturated
+           << "\n"
+           << "background " << Fmt("%.5g", result.background_dn_per_us) << " DN/us, noise "
+           << Fmt("%.3g", result.noise_dn_per_us) << " DN/us\n"
+           << "grid homography rms " << Fmt("%.4f", result.homography_rms_px) << " px\n"
+           << "residual to the displayed grid on the monitor plane: rms " << Fmt("%.4f", result.rms_residual_m * 1e3)
+           << " mm, max " << Fmt("%.4f", result.max_residual_m * 1e3) << " mm\n"
+           << "in-plane correction of the manifest monitor pose: " << Fmt("%.3f", result.in_plane_correction_m * 1e3)
+           << " mm, " << Fmt("%.4f", result.in_plane_correction_rad * 180 / kPi) << " deg\n";
+    THINSLAB_RETURN_IF_ERROR(CreateDirectories(calib_dir));
+    THINSLAB_RETURN_IF_ERROR(WriteRigCalibration(out_rig, out));
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(calib_dir, "dots.csv"), csv.str()));
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(calib_dir, "dots_report.txt"), report.str()));
+    std::cout << report.str() << "wrote " << out_rig << "\n";
+    return Status::Ok();
+  };
+  status = run();
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  return 0;
+}
 
 }  // namespace thinslab

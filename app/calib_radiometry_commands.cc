@@ -1,17 +1,372 @@
 // SPDX-License-Identifier: Apache-2.0
-// Placeholder until the radiometric calibration commands land (issue #6).
+// `thinslab calib response|hdr|flat SESSION`: radiometric calibration (issue #6). Each reads the
+// session (never modifying its frames) and writes into SESSION/calib/ atomically:
+//   response   -> calib/response.json           (calib/response_recovery, calib/response_io)
+//   hdr        -> calib/hdr/<group>.exr + summary.json + options.ini (calib/hdr_merge)
+//   flat       -> calib/flat_field.exr          (calib/flat_field)
+// docs/format.md ("Radiometric calibration files") describes every file.
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
 #include <iostream>
+#include <map>
+#include <set>
+#include <sstream>
 
 #include "app/commands.h"
+#include "app/option_parser.h"
+#include "calib/flat_field.h"
+#include "calib/hdr_merge.h"
+#include "calib/response_io.h"
+#include "calib/response_recovery.h"
+#include "core/exr_io.h"
+#include "core/file.h"
+#include "core/session_io.h"
+#include "core/version.h"
 
 namespace thinslab {
+namespace {
 
-static int NotYet(const char* what) {
-  std::cerr << "thinslab calib " << what << ": not implemented yet\n";
-  return 2;
+int Fail(const Status& status) {
+  std::cerr << "error: " << status.message() << "\n";
+  return 1;
 }
-int RunCalibResponse(int, char**) { return NotYet("response"); }
-int RunCalibHdr(int, char**) { return NotYet("hdr"); }
-int RunCalibFlat(int, char**) { return NotYet("flat"); }
+
+Status FindCamera(const std::string& session_dir, const Session& session, const std::string& camera_id,
+                  const CameraInfo** camera) {
+  const std::string manifest = JoinPath(session_dir, kSessionManifestName);
+  if (session.rig.cameras.empty()) return Status::Error(manifest + ": rig.cameras: no camera");
+  if (camera_id.empty()) {
+    *camera = &session.rig.cameras[0];
+    return Status::Ok();
+  }
+  *camera = session.FindCamera(camera_id);
+  if (*camera == nullptr) return Status::Error("--camera " + camera_id + ": no such camera in " + manifest);
+  return Status::Ok();
+}
+
+std::vector<const FrameRecord*> OfCamera(const std::vector<const FrameRecord*>& frames, const CameraInfo& camera) {
+  std::vector<const FrameRecord*> out;
+  for (const FrameRecord* f : frames) {
+    if (f->camera_id == camera.id) out.push_back(f);
+  }
+  return out;
+}
+
+// A bracket is the usable frames of one camera that show one scene: same kind, sample state and
+// light state. Its name is used for the output file.
+struct Group {
+  std::string name;
+  std::vector<const FrameRecord*> frames;
+  std::set<double> exposures;
+};
+
+std::string Sanitize(const std::string& s) {
+  std::string out;
+  for (char c : s) out += (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.') ? c : '_';
+  return out;
+}
+
+std::vector<Group> GroupFrames(const Session& session, const CameraInfo& camera, const std::string& kind_filter) {
+  std::map<std::string, Group> groups;
+  for (const FrameRecord& f : session.frames) {
+    if (f.status == FrameStatus::kFailed || f.camera_id != camera.id || f.kind == "dark") continue;
+    std::ostringstream name;
+    name << Sanitize(f.kind);
+    if (f.sample_state != "none") name << "_" << Sanitize(f.sample_state);
+    if (!f.light.projector_pattern.empty() && f.light.projector_pattern != "flat") {
+      name << "_" << Sanitize(f.light.projector_pattern);
+    }
+    if (f.light.laser_on && f.kind != "laser") name << "_laser";
+    if (f.light.dot_px) name << "_dot" << f.light.dot_px->x() << "_" << f.light.dot_px->y();
+    // --kind selects by frame kind or by group name (e.g. "laser_contaminated").
+    if (!kind_filter.empty() && f.kind != kind_filter && Sanitize(name.str()) != kind_filter) continue;
+    Group& g = groups[Sanitize(name.str())];
+    g.name = Sanitize(name.str());
+    g.frames.push_back(&f);
+    g.exposures.insert(f.exposure_time_us);
+  }
+  std::vector<Group> out;
+  for (auto& [name, g] : groups) out.push_back(std::move(g));
+  return out;
+}
+
+// Response file: --response PATH, else SESSION/calib/response.json if present, else linear.
+Status LoadResponse(const std::string& session_dir, const std::string& path_option, const CameraInfo& camera,
+                    CameraResponse* response, bool* have) {
+  *have = false;
+  std::string path = path_option;
+  if (path == "linear") return Status::Ok();
+  if (path.empty()) {
+    path = JoinPath(JoinPath(session_dir, "calib"), "response.json");
+    if (!FileExists(path)) return Status::Ok();
+  }
+  THINSLAB_RETURN_IF_ERROR(ReadResponse(path, response));
+  if (!response->camera_id.empty() && response->camera_id != camera.id) {
+    return Status::Error(path + ": camera: '" + response->camera_id + "', but the session's camera is '" + camera.id + "'");
+  }
+  if (response->bit_depth != 0 && response->bit_depth != camera.bit_depth) {
+    return Status::Error(path + ": bit_depth: " + std::to_string(response->bit_depth) + ", but camera '" + camera.id +
+                         "' has bit_depth " + std::to_string(camera.bit_depth));
+  }
+  if (std::abs(response->black_level_dn - camera.black_level_dn) > 1e-9) {
+    return Status::Error(path + ": black_level_dn: " + std::to_string(response->black_level_dn) + ", but camera '" +
+                         camera.id + "' has " + std::to_string(camera.black_level_dn));
+  }
+  *have = true;
+  return Status::Ok();
+}
+
+void AddProvenance(Image* image, const std::string& session_dir, const std::string& options_ini) {
+  image->attributes()["format_version"] = "1.0";
+  image->attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
+  image->attributes()["git_hash"] = THINSLAB_GIT_HASH;
+  image->attributes()["options_digest"] = "fnv1a64:" + Digest(options_ini);
+  image->attributes()["source_session"] = session_dir;
+}
+
+}  // namespace
+
+int RunCalibResponse(int argc, char** argv) {
+  std::string session_dir, out, method = "debevec", kind, camera_id;
+  ResponseRecoveryOptions options;
+  OptionParser parser("calib response");
+  parser.AddPositional("SESSION", &session_dir, "capture session with an exposure bracket of a static scene");
+  parser.AddString("method", &method, "debevec (Debevec & Malik 1997) or robertson (Robertson et al. 2003)");
+  parser.AddString("kind", &kind,
+                   "frame kind or group name (e.g. laser_contaminated) of the bracket; default: the non-dark group "
+                   "with most exposures");
+  parser.AddString("camera", &camera_id, "camera id (default: the first camera)");
+  parser.AddInt("samples", &options.num_samples, "pixels sampled (stratified over irradiance)");
+  parser.AddInt("strata", &options.num_strata, "irradiance strata the samples are spread over");
+  parser.AddInt("knots", &options.max_knots, "largest number of response knots (16..4096)");
+  parser.AddDouble("lambda", &options.smoothness_lambda, "Debevec smoothness weight");
+  parser.AddDouble("robertson-lambda", &options.robertson_smoothness_lambda, "Robertson smoothness weight");
+  parser.AddInt("min-exposures", &options.min_exposures, "fewest distinct exposures accepted (>= 2)");
+  parser.AddUint64("seed", &options.seed, "seed of the pixel sample");
+  parser.AddString("out", &out, "output file (default SESSION/calib/response.json)");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  if (!status.ok()) return Fail(status);
+  if (method == "debevec") {
+    options.method = ResponseMethod::kDebevec;
+  } else if (method == "robertson") {
+    options.method = ResponseMethod::kRobertson;
+  } else {
+    return Fail(Status::Error("--method " + method + ": expected debevec or robertson"));
+  }
+  Session session;
+  status = ReadSession(session_dir, &session);
+  if (!status.ok()) return Fail(status);
+  const CameraInfo* camera = nullptr;
+  status = FindCamera(session_dir, session, camera_id, &camera);
+  if (!status.ok()) return Fail(status);
+  const std::string manifest = JoinPath(session_dir, kSessionManifestName);
+  if (camera->bit_depth > 16) {
+    return Fail(Status::Error(manifest + ": camera '" + camera->id + "': bit_depth " + std::to_string(camera->bit_depth) +
+                              ": float frames are already linear; no response to recover"));
+  }
+  std::vector<Group> groups = GroupFrames(session, *camera, kind);
+  if (groups.empty()) {
+    return Fail(Status::Error(manifest + ": frames: no usable non-dark frame" +
+                              (kind.empty() ? std::string() : " of kind '" + kind + "'") + " for camera '" +
+                              camera->id + "'"));
+  }
+  const Group& group = *std::max_element(groups.begin(), groups.end(), [](const Group& a, const Group& b) {
+    return std::make_pair(a.exposures.size(), a.frames.size()) < std::make_pair(b.exposures.size(), b.frames.size());
+  });
+  // One image per exposure: repeated frames at an exposure are averaged (noise falls as 1/sqrt(n)).
+  std::map<double, std::pair<Image, int>> by_exposure;
+  for (const FrameRecord* f : group.frames) {
+    Image image;
+    status = LoadFrame(session_dir, session, *f, &image);
+    if (!status.ok()) return Fail(status);
+    auto it = by_exposure.find(f->exposure_time_us);
+    if (it == by_exposure.end()) {
+      by_exposure.emplace(f->exposure_time_us, std::make_pair(std::move(image), 1));
+    } else {
+      for (size_t i = 0; i < image.data().size(); ++i) it->second.first.data()[i] += image.data()[i];
+      ++it->second.second;
+    }
+  }
+  options.saturation_dn = camera->saturation_dn - camera->black_level_dn;
+  std::vector<ResponseFrame> frames;
+  for (auto& [t, entry] : by_exposure) {
+    for (float& v : entry.first.data()) v /= static_cast<float>(entry.second);
+    std::ostringstream name;
+    name << group.name << " @ " << t << " us (" << entry.second << " frame" << (entry.second > 1 ? "s" : "") << ")";
+    // An exposure saturated everywhere carries no information (RecoverResponse would refuse
+    // it): leave it out, say so, and let the remaining count decide.
+    const bool all_saturated = std::all_of(entry.first.data().begin(), entry.first.data().end(),
+                                           [&](float z) { return z >= options.saturation_dn - 0.5; });
+    if (all_saturated) {
+      std::cout << "skipping " << name.str() << ": every pixel is saturated\n";
+      continue;
+    }
+    frames.push_back({&entry.first, t, camera->bit_depth, name.str()});
+  }
+  options.black_level_dn = camera->black_level_dn;
+  CameraResponse response;
+  ResponseRecoverySummary summary;
+  status = RecoverResponse(frames, options, &response, &summary).WithContext(session_dir + " (" + group.name + ")");
+  if (!status.ok()) return Fail(status);
+  response.camera_id = camera->id;
+  if (out.empty()) {
+    const std::string calib_dir = JoinPath(session_dir, "calib");
+    status = CreateDirectories(calib_dir);
+    if (!status.ok()) return Fail(status);
+    out = JoinPath(calib_dir, "response.json");
+  }
+  status = WriteResponse(out, response);
+  if (!status.ok()) return Fail(status);
+  std::cout << "bracket '" << group.name << "': " << frames.size() << " exposures, " << group.frames.size()
+            << " frames\n" << summary.BriefReport() << "\nwrote " << out << "\n";
+  return 0;
+}
+
+int RunCalibHdr(int argc, char** argv) {
+  std::string session_dir, response_path, weighting = "inverse-variance", kind, camera_id, out;
+  HdrMergeOptions options;
+  double read_noise_dn = 1.0;
+  OptionParser parser("calib hdr");
+  parser.AddPositional("SESSION", &session_dir, "capture session");
+  parser.AddString("response", &response_path,
+                   "response.json (default SESSION/calib/response.json if present; 'linear' = linear camera)");
+  parser.AddString("weighting", &weighting, "inverse-variance, hat (linear mean) or debevec (hat, log-domain mean)");
+  parser.AddString("kind", &kind, "merge only frames of this kind (default: every non-dark kind)");
+  parser.AddString("camera", &camera_id, "camera id (default: the first camera)");
+  parser.AddDouble("read-noise-dn", &read_noise_dn, "read noise when the session has no dark frames [DN]");
+  parser.AddInt("threads", &options.num_threads, "threads");
+  parser.AddString("out", &out, "output folder (default SESSION/calib/hdr)");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  if (!status.ok()) return Fail(status);
+  if (weighting == "inverse-variance") {
+    options.weighting = HdrWeighting::kInverseVariance;
+  } else if (weighting == "hat") {
+    options.weighting = HdrWeighting::kHat;
+  } else if (weighting == "debevec") {
+    options.weighting = HdrWeighting::kHat;
+    options.log_domain = true;
+  } else {
+    return Fail(Status::Error("--weighting " + weighting + ": expected inverse-variance, hat or debevec"));
+  }
+  Session session;
+  status = ReadSession(session_dir, &session);
+  if (!status.ok()) return Fail(status);
+  const CameraInfo* camera = nullptr;
+  status = FindCamera(session_dir, session, camera_id, &camera);
+  if (!status.ok()) return Fail(status);
+  CameraResponse response;
+  bool have_response = false;
+  status = LoadResponse(session_dir, response_path, *camera, &response, &have_response);
+  if (!status.ok()) return Fail(status);
+  const std::vector<Group> groups = GroupFrames(session, *camera, kind);
+  if (groups.empty()) {
+    return Fail(Status::Error(JoinPath(session_dir, kSessionManifestName) + ": frames: no usable non-dark frame" +
+                              (kind.empty() ? std::string() : " of kind '" + kind + "'")));
+  }
+  const auto darks = OfCamera(session.UsableFrames("dark"), *camera);
+  if (out.empty()) {
+    status = CreateDirectories(JoinPath(session_dir, "calib"));
+    if (!status.ok()) return Fail(status);
+    out = JoinPath(JoinPath(session_dir, "calib"), "hdr");
+  }
+  StagedDirectory staged(out);
+  status = staged.Init();
+  if (!status.ok()) return Fail(status);
+  const std::string options_ini = "# thinslab calib hdr\n" + parser.ToIni();
+  nlohmann::ordered_json summary;
+  summary["format"] = "thinslab-hdr-summary";
+  summary["format_version"] = "1.0";
+  summary["response"] = have_response ? response.method : "linear";
+  summary["weighting"] = weighting;
+  summary["camera"] = camera->id;
+  for (const Group& group : groups) {
+    HdrImage hdr;
+    SessionMergeInfo info;
+    status = MergeSessionBracket(session_dir, session, *camera, group.frames, darks,
+                                 have_response ? &response : nullptr, options, read_noise_dn, &hdr, &info);
+    if (!status.ok()) return Fail(status.WithContext(group.name));
+    Image image = StackChannels({&hdr.radiance, &hdr.variance, &hdr.all_saturated}, {"radiance", "variance", "saturated"});
+    AddProvenance(&image, session_dir, options_ini);
+    image.attributes()["camera"] = camera->id;
+    image.attributes()["group"] = group.name;
+    image.attributes()["response"] = have_response ? response.method : "linear";
+    image.attributes()["exposures_us"] = nlohmann::json(info.exposures_us).dump();
+    image.attributes()["dark_frames"] = std::to_string(info.num_darks);
+    status = WriteExr(JoinPath(staged.path(), group.name + ".exr"), image);
+    if (!status.ok()) return Fail(status);
+    summary["groups"].push_back({{"name", group.name},
+                                 {"file", group.name + ".exr"},
+                                 {"frames", info.num_frames},
+                                 {"exposures_us", info.exposures_us},
+                                 {"dark_frames", info.num_darks},
+                                 {"dark_exposure_mismatches", info.dark_exposure_mismatches},
+                                 {"read_noise_dn", info.read_noise_dn},
+                                 {"pixels_all_saturated", hdr.pixels_all_saturated},
+                                 {"pixels_fallback", hdr.pixels_fallback}});
+    std::cout << group.name << ": " << info.num_frames << " frames, " << info.num_exposures << " exposures, "
+              << info.num_darks << " darks, " << hdr.pixels_all_saturated << " pixels saturated everywhere\n";
+  }
+  status = WriteFileAtomically(JoinPath(staged.path(), "summary.json"), summary.dump(2) + "\n");
+  if (status.ok()) status = WriteFileAtomically(JoinPath(staged.path(), "options.ini"), options_ini);
+  if (status.ok()) status = staged.Commit();
+  if (!status.ok()) return Fail(status);
+  std::cout << "wrote " << out << "\n";
+  return 0;
+}
+
+int RunCalibFlat(int argc, char** argv) {
+  std::string session_dir, response_path, out;
+  FlatFieldOptions options;
+  OptionParser parser("calib flat");
+  parser.AddPositional("SESSION", &session_dir, "shadow-map capture session");
+  parser.AddString("response", &response_path,
+                   "response.json (default SESSION/calib/response.json if present; 'linear' = linear camera)");
+  parser.AddString("kind", &options.kind, "frame kind of the flat frames (default: flat if present, else reference)");
+  parser.AddDouble("sigma-px", &options.smoothing_sigma_px, "Gaussian smoothing sigma [camera px]; 0 = none");
+  parser.AddDouble("min-relative", &options.min_relative, "pixels below this fraction of the median are invalid");
+  parser.AddString("out", &out, "output file (default SESSION/calib/flat_field.exr)");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  if (!status.ok()) return Fail(status);
+  Session session;
+  status = ReadSession(session_dir, &session);
+  if (!status.ok()) return Fail(status);
+  if (session.rig.cameras.empty()) return Fail(Status::Error(session_dir + ": rig.cameras: no camera"));
+  CameraResponse response;
+  bool have_response = false;
+  status = LoadResponse(session_dir, response_path, session.rig.cameras[0], &response, &have_response);
+  if (!status.ok()) return Fail(status);
+  Image flat;
+  FlatFieldSummary summary;
+  status = ComputeSessionFlatField(session_dir, session, have_response ? &response : nullptr, options, &flat, &summary);
+  if (!status.ok()) return Fail(status);
+  AddProvenance(&flat, session_dir, "# thinslab calib flat\n" + parser.ToIni());
+  flat.attributes()["camera"] = session.rig.cameras[0].id;
+  flat.attributes()["frame_kind"] = summary.kind;
+  flat.attributes()["median_dn_per_us"] = nlohmann::json(summary.median_dn_per_us).dump();
+  flat.attributes()["smoothing_sigma_px"] = nlohmann::json(options.smoothing_sigma_px).dump();
+  flat.attributes()["response"] = have_response ? response.method : "linear";
+  if (out.empty()) {
+    status = CreateDirectories(JoinPath(session_dir, "calib"));
+    if (!status.ok()) return Fail(status);
+    out = JoinPath(JoinPath(session_dir, "calib"), "flat_field.exr");
+  }
+  status = WriteExr(out, flat);
+  if (!status.ok()) return Fail(status);
+  std::cout << summary.BriefReport() << "\nwrote " << out << "\n";
+  return 0;
+}
 
 }  // namespace thinslab

@@ -1,39 +1,109 @@
 // SPDX-License-Identifier: Apache-2.0
-// HDR merge of an exposure bracket from a linear camera. Each frame k gives the estimate
-// DN_k / t_k of the radiance (DN per microsecond) with variance (DN_k / gain + read^2) / t_k^2
-// (shot + read noise). The merge is the inverse-variance weighted mean of the unsaturated
-// estimates (optimal for a linear sensor, Granados et al. 2010); saturated samples get zero
-// weight. Pixels saturated in every frame keep the estimate of the shortest exposure at its
-// saturation level (a lower bound) and are flagged.
+// HDR merge of an exposure bracket. Frame k holds black-subtracted values z_k (DN); the
+// camera's inverse response L (calib/response_io.h; identity for a linear camera) turns each
+// unsaturated sample into the radiance estimate x_k = (L(z_k) - D_k) / t_k in linear DN per
+// microsecond, with D_k the linearised dark signal at that exposure (optional) and t_k the
+// exposure the camera reported applying. Its variance is
+//   var_k = (max(L(z_k), 0) / gain + read^2 + [L'(z_k)^2 / 12] + var(D_k)) / t_k^2
+// (shot + read noise in the linear domain; the bracketed quantisation term only for a
+// nonlinear response, whose steps in linear units vary with z).
+//
+// The merge is a weighted mean of the x_k:
+//  - kInverseVariance (default): weights 1 / var_k, the optimal estimator for a linear sensor
+//    (Granados et al. 2010); variance 1 / sum(w).
+//  - kHat: Debevec & Malik 1997 Eq. 6 weights w(z) = min(z, z_sat - z) (or a given table);
+//    variance sum(w^2 var_k) / sum(w)^2. With log_domain = true the mean is taken of ln x_k,
+//    exactly Debevec & Malik Eq. 6 (and OpenCV's MergeDebevec).
+// Unlike OpenCV's MergeDebevec (triangle weights 1 at z = 0 and z = 255), samples at or above
+// saturation get zero weight whatever the weighting. A pixel whose unsaturated samples all have
+// zero weight takes the longest unsaturated exposure's estimate; a pixel saturated in every
+// frame keeps the estimate of the shortest exposure at its saturation level (a lower bound) and
+// is flagged.
+//
+// Speed: when the frames declare their bit depth and hold integer raw values, each exposure's
+// x, weight and w^2 var are tabulated over all 2^bit_depth raw values once, and the merge is a
+// single pass over the pixels with table look-ups, split over rows between threads.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
+#include "calib/response_io.h"
 #include "core/image.h"
+#include "core/session.h"
 #include "core/status.h"
 
 namespace thinslab {
 
 struct HdrFrame {
+  HdrFrame() = default;
+  HdrFrame(const Image* frame_dn, double exposure_us) : dn(frame_dn), exposure_time_us(exposure_us) {}
+
   const Image* dn = nullptr;  // Black level already subtracted.
   double exposure_time_us = 0;
+  // Optional dark signal at this exposure in linear DN (black level subtracted, linearised
+  // with the same response, averaged over dark_count frames); subtracted in the linear domain.
+  const Image* dark_linear_dn = nullptr;
+  int dark_count = 1;
+  int bit_depth = 0;  // 0 = not declared. Declared depths must agree across the bracket.
+  std::string name;   // For messages (e.g. the frame file); "" = "frame <k>".
 };
+
+enum class HdrWeighting { kInverseVariance, kHat };
 
 struct HdrMergeOptions {
   double saturation_dn = 0;   // Raw saturation minus black level: samples at or above are dropped.
   double gain_e_per_dn = 0;   // 0: unknown, shot noise then taken as DN (gain 1).
   double read_noise_dn = 1;   // RMS read noise in DN.
+  HdrWeighting weighting = HdrWeighting::kInverseVariance;
+  bool log_domain = false;    // Average ln x_k (Debevec & Malik Eq. 6); only with kHat.
+  // Inverse response; nullptr = linear camera. Must outlive the call.
+  const CameraResponse* response = nullptr;
+  // Black level (raw DN) of the frames: raw = z + black_level_dn indexes the tables.
+  double black_level_dn = 0;
+  // Optional weights per raw DN value (size 2^bit_depth) replacing the hat of kHat, e.g.
+  // OpenCV's triangle. Saturated samples still get zero weight.
+  std::vector<double> weight_table;
+  int num_threads = 2;        // Rows are split between this many threads.
+  bool use_lookup_tables = true;
 
   bool Check(std::string* error) const;
 };
 
 struct HdrImage {
-  Image radiance;        // DN per microsecond.
+  Image radiance;        // Linear DN per microsecond.
   Image variance;        // (DN per microsecond)^2.
   Image all_saturated;   // 1 where every frame saturated.
+  int64_t pixels_all_saturated = 0;
+  int64_t pixels_fallback = 0;  // Unsaturated samples all had zero weight.
+  bool used_lookup_tables = false;
 };
 
 Status MergeExposureBracket(const std::vector<HdrFrame>& frames, const HdrMergeOptions& options, HdrImage* hdr);
+
+// Session level: loads `frames` (one camera's bracket of one scene) and `darks` of a capture,
+// linearises the dark frames with `response` (nullptr = linear) and averages those of each
+// exposure (dark frames with the frame's exposure within 0.1 %; otherwise those of the nearest
+// exposure, counted in dark_exposure_mismatches), estimates the read noise in linear DN from the
+// shortest exposure's darks (half the variance of the difference of two, or the spread of one;
+// `fallback_read_noise_dn` without darks) and merges. Saturation, black level, gain and
+// bit depth come from the camera. Errors name the frame file.
+struct SessionMergeInfo {
+  int num_frames = 0;
+  int num_exposures = 0;
+  int num_darks = 0;
+  int dark_exposure_mismatches = 0;  // Frames whose darks had another exposure.
+  double read_noise_dn = 0;
+  std::vector<double> exposures_us;
+};
+Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                           const std::vector<const FrameRecord*>& frames, const std::vector<const FrameRecord*>& darks,
+                           const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
+                           HdrImage* hdr, SessionMergeInfo* info);
+
+// The hat weight of Debevec & Malik 1997 (Eq. 4) on black-subtracted z in [0, z_sat],
+// normalised to 1 at mid-range; 0 at and beyond both ends.
+double HatWeight(double z_dn, double saturation_dn);
 
 }  // namespace thinslab

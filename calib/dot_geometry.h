@@ -1,0 +1,77 @@
+// SPDX-License-Identifier: Apache-2.0
+// CRT/monitor dot geometry (Dai et al. 2009, Section 4.1): "Dot positions are determined by
+// capturing an image without the material sample. The dots are displayed simultaneously,
+// detected in the image, and then projected to the 3D plane (x, y, d)." and "The color and
+// intensity of the monitor is measured by directly capturing its output" (L_q in Eq. 12).
+//
+// Steps: background subtraction (robust median/MAD of the frame), thresholding and connected
+// components, intensity-weighted sub-pixel centroids over a window around each blob; matching of
+// blobs to the displayed grid by a homography (monitor px -> undistorted image) fitted with
+// RANSAC, seeded both from the nominal rig geometry and from the four corners of the blobs'
+// convex hull (the better hypothesis wins); back-projection of each centroid's camera ray to
+// the monitor plane (3D position in the sample frame); the dot's radiance as its integrated
+// signal divided by its projected area; residuals against the displayed grid after a fitted
+// in-plane rigid correction of the monitor pose.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "core/image.h"
+#include "core/rigid3.h"
+#include "core/session.h"
+#include "core/status.h"
+
+namespace thinslab {
+
+struct DotGeometryOptions {
+  double dot_radius_px = 2.0;        // Radius of a displayed dot, monitor px (for L_q's area).
+  double threshold_sigma = 8;        // Detection threshold above background, in noise sigmas,
+  double threshold_fraction = 0.25;  // and at least this fraction of the brightest 3x3 mean (so
+                                     // blur tails do not bridge dense dots).
+  double min_peak_fraction = 0.2;    // ... and at least this fraction of the median blob peak.
+  int min_blob_area_px = 2;          // Smaller blobs are noise.
+  int window_margin_px = 3;          // Centroid/flux window: blob bounding box grown by this.
+  double match_gate_fraction = 0.35; // Match radius as a fraction of the local dot spacing in the image.
+  Status Check() const;
+};
+
+struct DotRecord {
+  Eigen::Vector2d dot_px = Eigen::Vector2d::Zero();  // Displayed position, monitor px (centres +0.5).
+  bool detected = false;
+  Eigen::Vector2d centroid_px = Eigen::Vector2d::Zero();  // Camera image, thinslab px.
+  Eigen::Vector3d position_in_sample_m = Eigen::Vector3d::Zero();  // Back-projected onto the monitor plane.
+  // L_q: mean radiance over the dot in camera units, i.e. DN/us that a camera pixel entirely
+  // covered by the dot would record (black level and background removed).
+  double radiance_dn_per_us = 0;
+  bool saturated = false;  // Some pixel of the dot reached saturation_dn: radiance unusable.
+  double residual_m = 0;   // |position - fitted grid position| on the monitor plane.
+};
+
+struct DotGeometryResult {
+  std::vector<DotRecord> dots;          // One per displayed dot, in display order.
+  Rigid3d sample_from_monitor;          // Nominal monitor pose refined in-plane (rotation about the
+                                        // monitor normal and translation in the plane).
+  double rms_residual_m = 0, max_residual_m = 0;
+  double in_plane_correction_m = 0;     // Size of the in-plane shift applied to the nominal pose.
+  double in_plane_correction_rad = 0;
+  double homography_rms_px = 0;         // Fit of the matched centroids by the grid homography.
+  int num_blobs = 0, num_matched = 0, num_unmatched_blobs = 0;
+  double background_dn_per_us = 0, noise_dn_per_us = 0;
+};
+
+// `frame_dn`: the all-dots frame in DN with the black level already removed (session_io
+// LoadFrame), `exposure_us` its exposure, `raw_saturation_dn` the saturation threshold in the
+// same units (saturation_dn - black_level_dn). `camera` carries intrinsics, distortion and
+// cam_from_sample; `monitor` the nominal monitor geometry; `displayed_dots_px` the grid shown.
+Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double saturation_dn, const CameraInfo& camera,
+                            const MonitorInfo& monitor, const std::vector<Eigen::Vector2d>& displayed_dots_px,
+                            const DotGeometryOptions& options, DotGeometryResult* result);
+
+// Point where the camera ray through thinslab pixel `pixel` meets the monitor plane, sample
+// frame. False if the ray is parallel to the plane or the plane is behind the camera.
+bool BackProjectToMonitor(const CameraInfo& camera, const Rigid3d& sample_from_monitor, const Eigen::Vector2d& pixel,
+                          Eigen::Vector3d* x_in_sample);
+
+}  // namespace thinslab

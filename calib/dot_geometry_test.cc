@@ -1,0 +1,201 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "calib/dot_geometry.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include "core/camera_model.h"
+#include "core/math.h"
+#include "sim/sim_dot_monitor.h"
+
+namespace thinslab {
+namespace {
+
+constexpr char kGrid[] = "dots:20.5,20.5,20,20,19,19";  // 361 dots, 5 mm apart on a 0.25 mm pitch screen.
+
+std::vector<Eigen::Vector2d> GridDots() {
+  std::vector<Eigen::Vector2d> dots;
+  for (int j = 0; j < 19; ++j) {
+    for (int i = 0; i < 19; ++i) dots.emplace_back(20.5 + 20 * i, 20.5 + 20 * j);
+  }
+  return dots;
+}
+
+// Captures `pattern` through the simulated rig; returns DN with the black level removed.
+Image Capture(SimDotMonitor* rig, const std::string& pattern) {
+  EXPECT_TRUE(rig->ShowPattern(pattern).ok());
+  CapturedFrame frame;
+  EXPECT_TRUE(rig->camera()->Capture(&frame).ok());
+  Image dn = frame.raw_dn;
+  for (float& v : dn.data()) v -= static_cast<float>(rig->camera_info().black_level_dn);
+  return dn;
+}
+
+MonitorInfo ShiftedMonitor(const MonitorInfo& truth, const Eigen::Vector2d& shift_m, double angle_rad) {
+  MonitorInfo m = truth;
+  Rigid3d nominal_from_true;
+  nominal_from_true.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(angle_rad, Eigen::Vector3d::UnitZ()));
+  nominal_from_true.translation = Eigen::Vector3d(shift_m.x(), shift_m.y(), 0);
+  const Rigid3d true_from_nominal = nominal_from_true.Inverse();
+  m.sample_from_monitor.rotation = (truth.sample_from_monitor.rotation * true_from_nominal.rotation).normalized();
+  m.sample_from_monitor.translation = truth.sample_from_monitor * true_from_nominal.translation;
+  return m;
+}
+
+void CheckAgainstTruth(const SimDotMonitor& rig, const DotGeometryResult& result) {
+  const CameraInfo& cam = rig.camera_info();
+  ASSERT_EQ(result.dots.size(), 361u);
+  EXPECT_EQ(result.num_matched, 361);
+  EXPECT_EQ(result.num_unmatched_blobs, 0);
+  double worst_m = 0, worst_refined_m = 0, worst_radiance = 0, mean_ratio = 0, mean_sq = 0;
+  const double expected_radiance = rig.options().dot_radiance * rig.options().electrons_per_radiance_us / cam.gain_e_per_dn;
+  for (const DotRecord& dot : result.dots) {
+    ASSERT_TRUE(dot.detected);
+    const Eigen::Vector3d truth = rig.DotInSample(dot.dot_px);
+    worst_m = std::max(worst_m, (dot.position_in_sample_m - truth).norm());
+    const Eigen::Vector3d refined = result.sample_from_monitor * Eigen::Vector3d(dot.dot_px.x() * 0.25e-3, dot.dot_px.y() * 0.25e-3, 0);
+    worst_refined_m = std::max(worst_refined_m, (refined - truth).norm());
+    worst_radiance = std::max(worst_radiance, std::abs(dot.radiance_dn_per_us / expected_radiance - 1));
+    mean_ratio += dot.radiance_dn_per_us / expected_radiance / result.dots.size();
+    mean_sq += Sqr(dot.radiance_dn_per_us / expected_radiance) / result.dots.size();
+    EXPECT_FALSE(dot.saturated);
+  }
+  std::printf("dots: worst back-projected error %.4f mm, worst refined-grid error %.4f mm, rms residual %.4f mm, "
+              "homography rms %.3f px, worst radiance error %.2f %% (mean ratio %.4f, std %.4f)\n",
+              worst_m * 1e3, worst_refined_m * 1e3, result.rms_residual_m * 1e3, result.homography_rms_px,
+              worst_radiance * 100, mean_ratio, std::sqrt(std::max(0.0, mean_sq - Sqr(mean_ratio))));
+  // Issue #6 tolerance: every dot's 3D position within 0.1 mm.
+  EXPECT_LT(worst_m, 0.1e-3);
+  EXPECT_LT(worst_refined_m, 0.1e-3);
+  EXPECT_LT(result.max_residual_m, 0.1e-3);
+  // L_q: unbiased (mean over the dots within 1 % of the simulated radiance) and every dot within
+  // 5 %. The per-dot scatter (about 1.2-1.9 % rms) is the simulator's: its n x n sub-samples per
+  // camera pixel sample the pixelated ~18 px dot image; it drops from 1.85 % to 1.16 % going from
+  // 4 x 4 to 8 x 8 sub-samples, while sensor noise accounts for about 0.2 %.
+  EXPECT_NEAR(mean_ratio, 1.0, 0.01);
+  EXPECT_LT(worst_radiance, 0.05);
+}
+
+TEST(DotGeometryTest, RecoversDotPositionsAndRadianceWithNominalMonitorOffset) {
+  SimDotMonitorOptions options;
+  std::unique_ptr<SimDotMonitor> rig;
+  ASSERT_TRUE(SimDotMonitor::Create(options, &rig).ok());
+  const Image frame = Capture(rig.get(), kGrid);
+  const CameraInfo cam = rig->camera_info();
+  // The manifest's monitor placement is off by (3, -2) mm and 1 degree in the screen plane.
+  const MonitorInfo nominal = ShiftedMonitor(rig->monitor_info(), Eigen::Vector2d(3e-3, -2e-3), 1 * kPi / 180);
+  DotGeometryOptions dot_options;
+  dot_options.dot_radius_px = options.dot_radius_px;
+  DotGeometryResult result;
+  const Status s = CalibrateDotGeometry(frame, 1000, cam.saturation_dn - cam.black_level_dn, cam, nominal, GridDots(),
+                                        dot_options, &result);
+  ASSERT_TRUE(s.ok()) << s.message();
+  CheckAgainstTruth(*rig, result);
+  EXPECT_NEAR(result.in_plane_correction_rad, 1 * kPi / 180, 0.01 * kPi / 180);
+}
+
+// A nominal placement off by 3 dot spacings: the nominal seed mismatches, the convex-hull seed
+// recovers the correct correspondence.
+TEST(DotGeometryTest, MatchesGridDespiteLargeNominalError) {
+  SimDotMonitorOptions options;
+  options.monitor_rotation_deg = 2;
+  std::unique_ptr<SimDotMonitor> rig;
+  ASSERT_TRUE(SimDotMonitor::Create(options, &rig).ok());
+  const Image frame = Capture(rig.get(), kGrid);
+  const CameraInfo cam = rig->camera_info();
+  const MonitorInfo nominal = ShiftedMonitor(rig->monitor_info(), Eigen::Vector2d(-15e-3, 10e-3), -3 * kPi / 180);
+  DotGeometryResult result;
+  const Status s =
+      CalibrateDotGeometry(frame, 1000, cam.saturation_dn - cam.black_level_dn, cam, nominal, GridDots(), {}, &result);
+  ASSERT_TRUE(s.ok()) << s.message();
+  CheckAgainstTruth(*rig, result);
+}
+
+// Dai et al.'s density: a 40 x 40 grid, dots 8 monitor px (2 mm) apart, about 11 x 8 camera px:
+// neighbouring windows overlap and are split between the dots.
+TEST(DotGeometryTest, DenseFortyByFortyGrid) {
+  SimDotMonitorOptions options;
+  std::unique_ptr<SimDotMonitor> rig;
+  ASSERT_TRUE(SimDotMonitor::Create(options, &rig).ok());
+  const Image frame = Capture(rig.get(), "dots:40.5,40.5,8,8,40,40");
+  std::vector<Eigen::Vector2d> dots;
+  for (int j = 0; j < 40; ++j) {
+    for (int i = 0; i < 40; ++i) dots.emplace_back(40.5 + 8 * i, 40.5 + 8 * j);
+  }
+  const CameraInfo cam = rig->camera_info();
+  const MonitorInfo nominal = ShiftedMonitor(rig->monitor_info(), Eigen::Vector2d(1e-3, 1e-3), 0.5 * kPi / 180);
+  DotGeometryResult result;
+  const Status s =
+      CalibrateDotGeometry(frame, 1000, cam.saturation_dn - cam.black_level_dn, cam, nominal, dots, {}, &result);
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_EQ(result.num_matched, 1600) << "blobs " << result.num_blobs << " unmatched " << result.num_unmatched_blobs;
+  double worst_m = 0, mean_ratio = 0;
+  const double expected_radiance = options.dot_radiance * options.electrons_per_radiance_us / cam.gain_e_per_dn;
+  for (const DotRecord& dot : result.dots) {
+    ASSERT_TRUE(dot.detected);
+    worst_m = std::max(worst_m, (dot.position_in_sample_m - rig->DotInSample(dot.dot_px)).norm());
+    mean_ratio += dot.radiance_dn_per_us / expected_radiance / result.dots.size();
+  }
+  std::printf("dense grid: worst position error %.4f mm, mean radiance ratio %.4f\n", worst_m * 1e3, mean_ratio);
+  EXPECT_LT(worst_m, 0.1e-3);  // 0.1 mm, as for the sparse grid.
+  EXPECT_NEAR(mean_ratio, 1.0, 0.01);
+}
+
+// The simulator itself: a single dot's intensity centroid lands on the projection of its true
+// 3D position (within 0.1 px), so the tests above check the estimator, not a shared bias.
+TEST(DotGeometryTest, SimulatedSingleDotProjectsToItsTruePosition) {
+  SimDotMonitorOptions options;
+  std::unique_ptr<SimDotMonitor> rig;
+  ASSERT_TRUE(SimDotMonitor::Create(options, &rig).ok());
+  ASSERT_TRUE(rig->ShowPattern("dot:150.5,220.5").ok());
+  ASSERT_EQ(rig->shown_dots().size(), 1u);
+  const Image electrons = rig->RenderElectrons();
+  Eigen::Vector2d expected;
+  ASSERT_TRUE(ProjectSamplePoint(rig->camera_info(), rig->DotInSample(Eigen::Vector2d(150.5, 220.5)), &expected));
+  double sw = 0, sx = 0, sy = 0;
+  for (int y = 0; y < electrons.height(); ++y) {
+    for (int x = 0; x < electrons.width(); ++x) {
+      sw += electrons.at(x, y);
+      sx += electrons.at(x, y) * (x + 0.5);
+      sy += electrons.at(x, y) * (y + 0.5);
+    }
+  }
+  ASSERT_GT(sw, 0);
+  EXPECT_NEAR(sx / sw, expected.x(), 0.1);
+  EXPECT_NEAR(sy / sw, expected.y(), 0.1);
+  EXPECT_TRUE(rig->ShowPattern("").ok());
+  EXPECT_TRUE(rig->shown_dots().empty());
+}
+
+TEST(DotGeometryTest, BadInputsAreErrors) {
+  SimDotMonitorOptions options;
+  std::unique_ptr<SimDotMonitor> rig;
+  ASSERT_TRUE(SimDotMonitor::Create(options, &rig).ok());
+  Status s = rig->ShowPattern("dots:1,2,3");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("dots:1,2,3"), std::string::npos) << s.message();
+  options.monitor_pixel_pitch_m = 0;
+  std::unique_ptr<SimDotMonitor> bad;
+  s = SimDotMonitor::Create(options, &bad);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("monitor_pixel_pitch_m"), std::string::npos);
+
+  const CameraInfo cam = rig->camera_info();
+  const Image black = Capture(rig.get(), "");
+  DotGeometryResult result;
+  s = CalibrateDotGeometry(black, 1000, cam.saturation_dn, cam, rig->monitor_info(), GridDots(), {}, &result);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("need at least 4"), std::string::npos) << s.message();
+  EXPECT_FALSE(CalibrateDotGeometry(Image(10, 10), 1000, cam.saturation_dn, cam, rig->monitor_info(), GridDots(), {},
+                                    &result).ok());
+  DotGeometryOptions bad_options;
+  bad_options.match_gate_fraction = 0.7;
+  EXPECT_FALSE(CalibrateDotGeometry(black, 1000, cam.saturation_dn, cam, rig->monitor_info(), GridDots(), bad_options,
+                                    &result).ok());
+}
+
+}  // namespace
+}  // namespace thinslab
