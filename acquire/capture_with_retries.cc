@@ -4,10 +4,15 @@
 namespace thinslab {
 
 Status CaptureWithRetries(Camera* camera, const FrameRecord& templ, int max_retries, SessionWriter* writer) {
+  bool already_on_disk = false;
+  THINSLAB_RETURN_IF_ERROR(writer->ClaimStep(templ, &already_on_disk));
+  if (already_on_disk) return Status::Ok();  // Resumed session: this frame was captured before.
   std::string last_error;
   for (int attempt = 0; attempt <= max_retries; ++attempt) {
     CapturedFrame frame;
     const Status status = camera->Capture(&frame);
+    // Transport statistics ride along with every manifest write (docs/format.md 2.3.1).
+    writer->SetCameraStatistics(camera->info().id, camera->statistics());
     if (!status.ok()) {
       last_error = status.message();
       THINSLAB_RETURN_IF_ERROR(writer->AddFailedFrame(templ, last_error));

@@ -10,6 +10,8 @@ namespace thinslab {
 // A failed attempt is recorded as a "failed" frame with the device's message; the frame that
 // finally succeeds is "retried" if any attempt failed. After max_retries + 1 failures the error
 // names the camera and the last device message.
+// The frame is first claimed (SessionWriter::ClaimStep): on a resumed session a frame of the
+// plan that is already on disk is not captured again.
 Status CaptureWithRetries(Camera* camera, const FrameRecord& templ, int max_retries, SessionWriter* writer);
 
 }  // namespace thinslab

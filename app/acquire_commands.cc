@@ -1,13 +1,655 @@
 // SPDX-License-Identifier: Apache-2.0
-// Placeholder until `thinslab acquire` lands (issue #7).
-#include <iostream>
+// `thinslab acquire <kind> [--camera sim|aravis:<ip>|v4l2:<device>] [--display <n>]
+//  [--laser <spec>] [--resume] [kind options] OUTPUT` (docs/cli.md, "Acquisition").
+// The session scripts of acquire/ run through the driver interfaces on either the simulated
+// rigs (the default; the same rigs and scripts as `thinslab sim`) or real devices. With
+// --camera sim, --display and --laser drive the real display or laser trigger alongside the
+// simulated ones (a dry run of the device; the frames come from the simulation).
+// Devices are opened before the session folder is touched, so a device that cannot be opened
+// leaves no folder (new session) or the folder as it was (resume).
+#include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <thread>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include "acquire/dot_scan_session.h"
+#include "acquire/laser_lobe_session.h"
+#include "acquire/session_journal.h"
+#include "acquire/shadow_map_session.h"
 #include "app/commands.h"
+#include "app/option_parser.h"
+#include "core/file.h"
+#include "core/session_io.h"
+#include "core/version.h"
+#include "drivers/aravis_camera.h"
+#include "drivers/pattern_window.h"
+#include "drivers/usb_laser.h"
+#include "drivers/v4l2_camera.h"
+#include "sim/laser_lobe_rig.h"
+#include "sim/shadow_map_rig.h"
+#include "sim/sim_board_camera.h"
+#include "sim/sim_dot_monitor.h"
 
 namespace thinslab {
+namespace {
 
-int RunAcquire(int, char**) {
-  std::cerr << "thinslab acquire: not implemented yet\n";
+// SIGINT/SIGTERM stop the session between frames; the manifest then says "interrupted".
+std::atomic<int> g_stop_signal{0};
+extern "C" void OnStopSignal(int signal) { g_stop_signal.store(signal); }
+
+std::string StopReason() {
+  const int s = g_stop_signal.load();
+  if (s == 0) return "";
+  return std::string("interrupted by ") + (s == SIGINT ? "SIGINT" : s == SIGTERM ? "SIGTERM" : "a signal");
+}
+
+// Returns the value of --<name> in argv ("--name v" or "--name=v"), or `fallback`.
+std::string PeekOption(int argc, char** argv, const std::string& name, const std::string& fallback) {
+  const std::string flag = "--" + name;
+  for (int i = 0; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == flag && i + 1 < argc) return argv[i + 1];
+    if (arg.rfind(flag + "=", 0) == 0) return arg.substr(flag.size() + 1);
+  }
+  return fallback;
+}
+
+// The plan: kind plus every option except the ones naming devices, the folder or run control.
+std::string PlanText(const std::string& kind, const std::string& ini) {
+  static const char* kNotPlan[] = {"OUTPUT", "camera", "display", "laser", "resume", "quiet", "camera-timeout-s", "sim-realtime"};
+  std::ostringstream plan;
+  plan << kind;
+  std::istringstream lines(ini);
+  std::string line;
+  while (std::getline(lines, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    const std::string key = line.substr(0, line.find(" = "));
+    bool skip = false;
+    for (const char* k : kNotPlan) skip = skip || key == k;
+    if (!skip) plan << "; " << line;
+  }
+  return plan.str();
+}
+
+// Drives a real device and the simulated one together (--camera sim with --display/--laser).
+class TeeProjector : public Projector {
+ public:
+  TeeProjector(Projector* sim, Projector* real) : sim_(sim), real_(real) {}
+  Status ShowPattern(const std::string& pattern) override {
+    THINSLAB_RETURN_IF_ERROR(real_->ShowPattern(pattern));
+    return sim_->ShowPattern(pattern);
+  }
+  double refresh_period_s() const override { return sim_->refresh_period_s(); }
+
+ private:
+  Projector* sim_;
+  Projector* real_;
+};
+
+class TeeLaser : public Laser {
+ public:
+  TeeLaser(Laser* sim, Laser* real) : sim_(sim), real_(real) {}
+  Status SetEmission(bool on) override {
+    THINSLAB_RETURN_IF_ERROR(real_->SetEmission(on));
+    return sim_->SetEmission(on);
+  }
+
+ private:
+  Laser* sim_;
+  Laser* real_;
+};
+
+// A simulated camera that takes as long as a real one: each capture lasts its exposure.
+class RealtimeCamera : public Camera {
+ public:
+  explicit RealtimeCamera(Camera* camera) : camera_(camera) {}
+  const CameraInfo& info() const override { return camera_->info(); }
+  Status SetExposure(double requested_us, double* applied_us) override {
+    return camera_->SetExposure(requested_us, applied_us);
+  }
+  Status Capture(CapturedFrame* frame) override {
+    const auto start = std::chrono::steady_clock::now();
+    THINSLAB_RETURN_IF_ERROR(camera_->Capture(frame));
+    std::this_thread::sleep_until(start + std::chrono::microseconds(static_cast<int64_t>(frame->exposure_time_us)));
+    return Status::Ok();
+  }
+  std::map<std::string, double> statistics() const override { return camera_->statistics(); }
+
+ private:
+  Camera* camera_;
+};
+
+// Sample changes at a real rig are done by the operator: a prompt on stderr, confirmed with
+// Enter on stdin.
+SampleChanger OperatorSampleChanger() {
+  auto current = std::make_shared<std::string>();
+  return [current](const std::string& state) {
+    if (*current == state) return Status::Ok();
+    const std::string what = state == "none" ? "Remove the sample from the light path"
+                             : state == "clean" ? "Put the CLEAN glass in place"
+                                                : "Put the sample under test (" + state + ") in place";
+    std::cerr << what << ", then press Enter... " << std::flush;
+    std::string line;
+    if (!std::getline(std::cin, line)) {
+      return Status::Error("sample stage (operator): no confirmation for sample state '" + state +
+                           "' (end of input on stdin)");
+    }
+    *current = state;
+    return Status::Ok();
+  };
+}
+
+SampleChanger AnySampleState() {
+  return [](const std::string& state) {
+    if (state != "clean" && state != "contaminated" && state != "none") {
+      return Status::Error("sample stage (sim): unknown sample state '" + state + "'");
+    }
+    return Status::Ok();
+  };
+}
+
+struct CommonOptions {
+  std::string camera = "sim";
+  int display = -1;
+  std::string laser;
+  bool resume = false;
+  bool quiet = false;
+  bool sim_realtime = false;
+  double camera_timeout_s = 2;
+  int max_retries = 2;
+  std::string name;
+  std::string out;
+  // Rig description for real cameras (the simulated rigs describe themselves).
+  std::string region_mm = "-10,-10,10,10";
+  double pitch_mm = 0.1;
+  double board_distance_mm = 0;
+  double board_albedo = 0.9;
+  double beam_radius_mm = 0;
+  double wavelength_nm = 0;
+};
+
+void AddCommonOptions(OptionParser* parser, CommonOptions* o, bool sim) {
+  parser->AddPositional("OUTPUT", &o->out, "session folder to write (new or empty; with --resume, the interrupted one)");
+  parser->AddString("camera", &o->camera, "sim | aravis:<ip or device id> | v4l2:<device path>");
+  parser->AddInt("display", &o->display, "index of the display used as projector/monitor (-1: none)");
+  parser->AddString("laser", &o->laser, "USB laser trigger spec, e.g. hid-relay:16c0:05df:1 (docs/drivers.md)");
+  parser->AddBool("resume", &o->resume, "continue the interrupted or failed session in OUTPUT");
+  parser->AddBool("quiet", &o->quiet, "no progress on stderr");
+  parser->AddDouble("camera-timeout-s", &o->camera_timeout_s, "real cameras: connect and frame timeout [s]");
+  parser->AddInt("max-retries", &o->max_retries, "further attempts after a failed capture");
+  if (sim) {
+    parser->AddBool("sim-realtime", &o->sim_realtime,
+                    "the simulated camera takes its exposure time per capture, like a real one");
+  } else {
+    parser->AddString("name", &o->name, "session name");
+    parser->AddString("region-mm", &o->region_mm, "sample region x0,y0,x1,y1 on the sample plane [mm]");
+    parser->AddDouble("pitch-mm", &o->pitch_mm, "pitch of the rectified sample grid [mm]");
+    parser->AddDouble("board-distance-mm", &o->board_distance_mm, "sample-to-board distance [mm] (0: no board)");
+    parser->AddDouble("board-albedo", &o->board_albedo, "board albedo (0, 1]");
+    parser->AddDouble("beam-radius-mm", &o->beam_radius_mm, "laser beam radius [mm] (0: unknown)");
+    parser->AddDouble("wavelength-nm", &o->wavelength_nm, "laser wavelength [nm] (0: unknown)");
+  }
+}
+
+// The real devices named on the command line, opened before anything is written.
+struct RealDevices {
+  std::unique_ptr<Camera> camera;
+  std::unique_ptr<PatternWindow> window;
+  std::unique_ptr<UsbLaser> laser;
+  std::string display_name, laser_name;
+};
+
+Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
+  if (o.camera == "sim") return Status::Ok();
+  if (!(o.camera_timeout_s > 0)) {
+    return Status::Error("thinslab acquire: option --camera-timeout-s must be > 0");
+  }
+  if (o.camera.rfind("aravis:", 0) == 0) {
+    AravisCameraOptions options;
+    options.address = o.camera.substr(7);
+    options.frame_timeout_s = o.camera_timeout_s;
+    options.connect_timeout_s = o.camera_timeout_s;
+    if (options.address.empty()) return Status::Error("thinslab acquire: --camera aravis: needs an address");
+    std::unique_ptr<AravisCamera> camera;
+    THINSLAB_RETURN_IF_ERROR(OpenAravisCamera(options, &camera).WithContext("camera " + o.camera));
+    devices->camera = std::move(camera);
+    return Status::Ok();
+  }
+  if (o.camera.rfind("v4l2:", 0) == 0) {
+    V4l2CameraOptions options;
+    options.device = o.camera.substr(5);
+    options.timeout_s = o.camera_timeout_s;
+    if (options.device.empty()) return Status::Error("thinslab acquire: --camera v4l2: needs a device path");
+    std::unique_ptr<V4l2Camera> camera;
+    THINSLAB_RETURN_IF_ERROR(OpenV4l2Camera(options, &camera).WithContext("camera " + o.camera));
+    devices->camera = std::move(camera);
+    return Status::Ok();
+  }
+  return Status::Error("thinslab acquire: option --camera = '" + o.camera +
+                       "': expected sim, aravis:<ip or device id> or v4l2:<device path>");
+}
+
+// Camera first (the device every kind needs), then display and laser.
+Status OpenRealDevices(const CommonOptions& o, RealDevices* devices) {
+  THINSLAB_RETURN_IF_ERROR(OpenRealCamera(o, devices));
+  if (o.display >= 0) {
+    PatternWindowOptions options;
+    options.display_index = o.display;
+    THINSLAB_RETURN_IF_ERROR(OpenPatternWindow(options, &devices->window).WithContext("display " + std::to_string(o.display)));
+    devices->display_name = "display " + std::to_string(o.display);
+  } else if (o.display < -1) {
+    return Status::Error("thinslab acquire: option --display = " + std::to_string(o.display) +
+                         ": display indices are >= 0 (-1 = none)");
+  }
+  if (!o.laser.empty()) {
+    UsbLaserOptions options;
+    THINSLAB_RETURN_IF_ERROR(ParseUsbLaserSpec(o.laser, &options).WithContext("laser '" + o.laser + "'"));
+    THINSLAB_RETURN_IF_ERROR(OpenUsbLaser(options, &devices->laser).WithContext("laser '" + o.laser + "'"));
+    devices->laser_name = "laser " + devices->laser->device_name();
+  }
+  return Status::Ok();
+}
+
+// Rig description for a real camera from the command line.
+Status RealRig(const CommonOptions& o, const CameraInfo& camera, RigInfo* rig) {
+  double v[4];
+  char tail = 0;
+  if (std::sscanf(o.region_mm.c_str(), "%lf,%lf,%lf,%lf%c", &v[0], &v[1], &v[2], &v[3], &tail) != 4 ||
+      !(v[2] > v[0]) || !(v[3] > v[1])) {
+    return Status::Error("thinslab acquire: option --region-mm = '" + o.region_mm +
+                         "': expected x0,y0,x1,y1 with x1 > x0 and y1 > y0");
+  }
+  if (!(o.pitch_mm > 0)) return Status::Error("thinslab acquire: option --pitch-mm must be > 0");
+  rig->cameras = {camera};
+  rig->sample.region_min_m = Eigen::Vector2d(v[0], v[1]) * 1e-3;
+  rig->sample.region_max_m = Eigen::Vector2d(v[2], v[3]) * 1e-3;
+  rig->sample.pixel_pitch_m = o.pitch_mm * 1e-3;
+  if (o.board_distance_mm > 0) {
+    if (!(o.board_albedo > 0 && o.board_albedo <= 1)) {
+      return Status::Error("thinslab acquire: option --board-albedo must be in (0, 1]");
+    }
+    rig->board.present = true;
+    rig->board.distance_m = o.board_distance_mm * 1e-3;
+    rig->board.albedo = o.board_albedo;
+  }
+  return Status::Ok();
+}
+
+Session MakeHeader(const std::string& name, const std::string& kind, const RigInfo& rig, bool sim) {
+  Session header;
+  header.name = name;
+  header.kind = kind;
+  header.software = std::string("thinslab ") + THINSLAB_VERSION_STRING + " acquire" + (sim ? " (sim rig)" : "") +
+                    " (" + THINSLAB_GIT_HASH + ")";
+  header.rig = rig;
+  return header;
+}
+
+// Runs the script and reports; shared tail of every kind.
+int Finish(const std::string& kind, const CommonOptions& common, const std::string& plan, int planned_frames,
+           const Session& header, Camera* camera, const std::string& camera_name, const SessionScript& script,
+           DeviceFailureTracker* tracker, SimBoardCamera* sim_camera = nullptr) {
+  // A resumed simulation continues the device frame counter of the runs before it, so its
+  // frames are the ones an uninterrupted run would have taken (per-capture seeded noise).
+  if (sim_camera != nullptr && common.resume && FileExists(JoinPath(common.out, kSessionManifestName))) {
+    Session previous;
+    if (ReadSession(common.out, &previous).ok()) sim_camera->set_frame_counter(previous.acquisition.camera_captures);
+  }
+  AcquisitionRunOptions run;
+  run.session_dir = common.out;
+  run.resume = common.resume;
+  run.plan = plan;
+  run.planned_frames = planned_frames;
+  run.camera_name = camera_name;
+  run.label = "acquire " + kind;
+  run.progress = common.quiet ? nullptr : &std::cerr;
+  run.progress_is_terminal = ::isatty(STDERR_FILENO) != 0;
+  run.stop_check = StopReason;
+  run.tracker = tracker;
+  std::signal(SIGINT, OnStopSignal);
+  std::signal(SIGTERM, OnStopSignal);
+  AcquisitionResult result;
+  RealtimeCamera realtime(camera);
+  const Status status = RunAcquisition(run, header, common.sim_realtime ? &realtime : camera, script, &result);
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  if (result.already_complete) {
+    std::cout << common.out << ": session is already complete; nothing to resume\n";
+    return 0;
+  }
+  std::cout << "wrote " << kind << " session " << common.out << " (" << result.frames_captured << " frames captured"
+            << (result.frames_on_disk_before > 0 ? ", " + std::to_string(result.frames_on_disk_before) + " kept from before"
+                                                 : std::string())
+            << ")\n";
+  return 0;
+}
+
+int Fail(const Status& status) {
+  std::cerr << "error: " << status.message() << "\n";
+  return 1;
+}
+
+int Help(const OptionParser& parser) {
+  std::cout << parser.Usage();
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------
+
+int AcquireShadowMaps(int argc, char** argv, bool sim) {
+  CommonOptions common;
+  SyntheticShadowSessionOptions simulated;  // Rig options (sim) and the session script's options.
+  ShadowMapSessionOptions& session = simulated.session;
+  double board_distance_mm = simulated.rig.board_distance_m * 1e3;
+  std::string tau_path;
+  OptionParser parser("acquire shadow-maps");
+  AddCommonOptions(&parser, &common, sim);
+  if (sim) {
+    AddSimShadowOptions(&parser, &simulated, &board_distance_mm, &tau_path);
+  } else {
+    parser.AddInt("frames", &session.frames_per_state, "frames per state (shadow, reference)");
+    parser.AddInt("dark-frames", &session.dark_frames, "dark frames (projector off)");
+  }
+  parser.AddDouble("exposure-us", &session.exposure_time_us, "exposure [us]");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) return Help(parser);
+  if (!status.ok()) return Fail(status);
+  session.max_retries = common.max_retries;
+  std::string error;
+  if (!session.Check(&error)) return Fail(Status::Error(error));
+  const std::string plan = PlanText("shadow-maps", parser.ToIni());
+  const int planned = session.dark_frames + 2 * session.frames_per_state;
+
+  RealDevices devices;
+  status = OpenRealDevices(common, &devices);
+  if (!status.ok()) return Fail(status);
+  DeviceFailureTracker tracker;
+  if (sim) {
+    simulated.rig.board_distance_m = board_distance_mm * 1e-3;
+    simulated.rig.exposure_time_us = session.exposure_time_us;
+    Image tau;
+    status = LoadOrGenerateTau(tau_path, simulated.rig.seed, &tau);
+    std::unique_ptr<SimShadowMapRig> rig;
+    if (status.ok()) status = SimShadowMapRig::Create(simulated.rig, tau, &rig);
+    if (!status.ok()) return Fail(status);
+    TeeProjector tee(rig->projector(), devices.window.get());
+    TrackedProjector projector(devices.window ? static_cast<Projector*>(&tee) : rig->projector(),
+                               devices.window ? devices.display_name : "projector (sim)", &tracker);
+    const SampleChanger change = rig->sample_changer();
+    return Finish("shadow-maps", common, plan, planned, MakeHeader(simulated.name, "shadow_map", rig->rig_info(), true),
+                  rig->camera(), "sim",
+                  [&](Camera* camera, SessionWriter* writer) {
+                    return RunShadowMapSession(session, camera, &projector, change, writer);
+                  },
+                  &tracker, dynamic_cast<SimBoardCamera*>(rig->camera()));
+  }
+  if (!devices.window) return Fail(Status::Error("thinslab acquire shadow-maps: a real camera needs --display <n> (the projector)"));
+  RigInfo rig;
+  status = RealRig(common, devices.camera->info(), &rig);
+  if (!status.ok()) return Fail(status);
+  rig.projector.present = true;
+  TrackedProjector projector(devices.window.get(), devices.display_name, &tracker);
+  const SampleChanger change = OperatorSampleChanger();
+  return Finish("shadow-maps", common, plan, planned,
+                MakeHeader(common.name.empty() ? "shadow_map" : common.name, "shadow_map", rig, false),
+                devices.camera.get(), common.camera,
+                [&](Camera* camera, SessionWriter* writer) {
+                  return RunShadowMapSession(session, camera, &projector, change, writer);
+                },
+                &tracker);
+}
+
+int AcquireLaser(int argc, char** argv, bool sim) {
+  CommonOptions common;
+  SimLaserLobeOptions simulated;
+  LaserLobeSessionOptions session;
+  std::string name = "laser_lobe", exposures;
+  double distance_mm = simulated.board_distance_m * 1e3, beam_radius_mm = simulated.beam_radius_m * 1e3;
+  OptionParser parser("acquire laser");
+  AddCommonOptions(&parser, &common, sim);
+  if (sim) {
+    // The `thinslab sim laser` rig options (app/phase_commands.cc) that matter for acquisition.
+    parser.AddString("name", &name, "session name");
+    parser.AddDouble("tau", &simulated.layer_tau, "layer optical thickness (0 = clean glass)");
+    parser.AddDouble("albedo", &simulated.layer_albedo, "layer single-scattering albedo");
+    parser.AddDouble("g", &simulated.layer_g, "layer HG g");
+    parser.AddDouble("board-distance-mm", &distance_mm, "layer-to-board distance d [mm]");
+    parser.AddDouble("beam-radius-mm", &beam_radius_mm, "laser beam radius [mm]");
+    parser.AddInt("photons", &simulated.monte_carlo.num_photons, "Monte Carlo photons");
+    parser.AddInt("camera-width-px", &simulated.camera_width_px, "camera image width");
+    parser.AddInt("camera-height-px", &simulated.camera_height_px, "camera image height");
+    parser.AddBool("noise", &simulated.sensor.enable_noise, "simulate shot and read noise");
+    parser.AddUint64("seed", &simulated.seed, "seed of every random choice");
+  }
+  parser.AddString("exposures-us", &exposures, "bracket exposures, comma-separated (default 20,200,...,2000000)");
+  parser.AddInt("frames-per-exposure", &session.frames_per_exposure, "frames per bracket exposure");
+  parser.AddBool("capture-clean", &session.capture_clean, "also capture the clean glass");
+  parser.AddBool("capture-flat", &session.capture_flat, "also capture the board flat field");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) return Help(parser);
+  if (status.ok() && !exposures.empty()) status = ParseExposureList(exposures, "exposures-us", &session.exposure_times_us);
+  if (!status.ok()) return Fail(status);
+  session.max_retries = common.max_retries;
+  std::string error;
+  if (!session.Check(&error)) return Fail(Status::Error(error));
+  const std::string plan = PlanText("laser", parser.ToIni());
+  const int states = 2 + (session.capture_flat ? 1 : 0) + (session.capture_clean ? 1 : 0);
+  const int planned = states * static_cast<int>(session.exposure_times_us.size()) * session.frames_per_exposure;
+
+  RealDevices devices;
+  status = OpenRealDevices(common, &devices);
+  if (!status.ok()) return Fail(status);
+  DeviceFailureTracker tracker;
+  if (sim) {
+    simulated.board_distance_m = distance_mm * 1e-3;
+    simulated.beam_radius_m = beam_radius_mm * 1e-3;
+    simulated.shortest_exposure_us =
+        *std::min_element(session.exposure_times_us.begin(), session.exposure_times_us.end());
+    std::unique_ptr<SimLaserLobeRig> rig;
+    status = SimLaserLobeRig::Create(simulated, &rig);
+    if (!status.ok()) return Fail(status);
+    TeeProjector tee_projector(rig->flat_source(), devices.window.get());
+    TeeLaser tee_laser(rig->laser(), devices.laser.get());
+    TrackedProjector flat(devices.window ? static_cast<Projector*>(&tee_projector) : rig->flat_source(),
+                          devices.window ? devices.display_name : "flat-field source (sim)", &tracker);
+    TrackedLaser laser(devices.laser ? static_cast<Laser*>(&tee_laser) : rig->laser(),
+                       devices.laser ? devices.laser_name : "laser (sim)", &tracker);
+    const SampleChanger change = rig->sample_changer();
+    return Finish("laser", common, plan, planned, MakeHeader(name, "laser_lobe", rig->rig_info(), true), rig->camera(),
+                  "sim",
+                  [&](Camera* camera, SessionWriter* writer) {
+                    return RunLaserLobeSession(session, camera, &laser, &flat, change, writer);
+                  },
+                  &tracker, dynamic_cast<SimBoardCamera*>(rig->camera()));
+  }
+  if (!devices.laser) return Fail(Status::Error("thinslab acquire laser: a real camera needs --laser <spec>"));
+  if (session.capture_flat && !devices.window) {
+    return Fail(Status::Error("thinslab acquire laser: --capture-flat needs --display <n> (the flat-field source); "
+                              "or give --capture-flat false"));
+  }
+  RigInfo rig;
+  status = RealRig(common, devices.camera->info(), &rig);
+  if (!status.ok()) return Fail(status);
+  rig.laser.present = true;
+  rig.laser.beam_radius_m = common.beam_radius_mm * 1e-3;
+  rig.laser.wavelength_m = common.wavelength_nm * 1e-9;
+  rig.laser.origin_in_sample = Eigen::Vector3d(0, 0, 0.5);
+  // No flat-field source: ShowPattern("") only (the script shows "" when capture_flat is off).
+  class NoProjector : public Projector {
+   public:
+    Status ShowPattern(const std::string& pattern) override {
+      if (pattern.empty()) return Status::Ok();
+      return Status::Error("flat-field source: none given (--display)");
+    }
+  } none;
+  TrackedProjector flat(devices.window ? static_cast<Projector*>(devices.window.get()) : &none,
+                        devices.window ? devices.display_name : "flat-field source", &tracker);
+  TrackedLaser laser(devices.laser.get(), devices.laser_name, &tracker);
+  const SampleChanger change = OperatorSampleChanger();
+  return Finish("laser", common, plan, planned, MakeHeader(common.name.empty() ? "laser_lobe" : common.name,
+                                                           "laser_lobe", rig, false),
+                devices.camera.get(), common.camera,
+                [&](Camera* camera, SessionWriter* writer) {
+                  return RunLaserLobeSession(session, camera, &laser, &flat, change, writer);
+                },
+                &tracker);
+}
+
+// Options shared by dot-scan and bracket: the bracket and the synchronisation rule.
+void AddBracketOptions(OptionParser* parser, ExposureBracketOptions* bracket, std::string* exposures) {
+  parser->AddString("exposures-us", exposures, "exposures, comma-separated [us] (default: geometric min..max)");
+  parser->AddDouble("min-exposure-us", &bracket->min_exposure_us, "shortest exposure of the geometric bracket [us]");
+  parser->AddDouble("max-exposure-us", &bracket->max_exposure_us, "longest exposure of the geometric bracket [us]");
+  parser->AddInt("exposure-steps", &bracket->steps, "exposures in the geometric bracket");
+}
+void AddSyncOptions(OptionParser* parser, DisplaySyncOptions* sync) {
+  parser->AddInt("settle-captures", &sync->settle_captures, "captures before an invisible change counts as settled");
+  parser->AddInt("max-sync-captures", &sync->max_sync_captures, "captures before display-camera sync gives up");
+  parser->AddDouble("min-change-dn", &sync->min_change_dn, "smallest 3x3-mean change that shows a new pattern [DN]");
+}
+
+void AddSimMonitorOptions(OptionParser* parser, SimDotMonitorOptions* monitor) {
+  parser->AddInt("monitor-width-px", &monitor->monitor_width_px, "simulated monitor width [px]");
+  parser->AddInt("monitor-height-px", &monitor->monitor_height_px, "simulated monitor height [px]");
+  parser->AddDouble("dot-radiance", &monitor->dot_radiance, "radiance of a lit monitor pixel (relative)");
+  parser->AddInt("camera-width-px", &monitor->camera_width_px, "simulated camera width [px]");
+  parser->AddInt("camera-height-px", &monitor->camera_height_px, "simulated camera height [px]");
+  parser->AddBool("noise", &monitor->sensor.enable_noise, "simulate shot and read noise");
+  parser->AddUint64("seed", &monitor->seed, "seed of the sensor noise");
+}
+
+// dot-scan and bracket: display-driven, synchronised sessions.
+int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
+  const std::string kind = dot_scan ? "dot-scan" : "bracket";
+  CommonOptions common;
+  SimDotMonitorOptions monitor;
+  DotScanSessionOptions dots;
+  BracketSessionOptions bracket_session;
+  ExposureBracketOptions& bracket = dot_scan ? dots.bracket : bracket_session.bracket;
+  DisplaySyncOptions& sync = dot_scan ? dots.sync : bracket_session.sync;
+  if (dot_scan) {
+    // A dot's peak pixel then collects ~40 % of full well in one refresh period, so the shortest
+    // exposure of the bracket (and the all-dots frame) is unsaturated for `calib dots`.
+    monitor.dot_radiance = 0.05;
+  } else {
+    // The simulated monitor's flat field fills ~5 % of full well in one refresh period.
+    monitor.dot_radiance = 0.005;
+    bracket.min_exposure_us = 10000;
+    bracket.max_exposure_us = 160000;
+    bracket.steps = 5;
+  }
+  std::string name = dot_scan ? "dot_scan" : "exposure_bracket", exposures;
+  OptionParser parser("acquire " + kind);
+  AddCommonOptions(&parser, &common, sim);
+  if (sim) {
+    parser.AddString("name", &name, "session name");
+    AddSimMonitorOptions(&parser, &monitor);
+  }
+  AddBracketOptions(&parser, &bracket, &exposures);
+  AddSyncOptions(&parser, &sync);
+  if (dot_scan) {
+    parser.AddInt("grid-nx", &dots.grid_nx, "dots per row");
+    parser.AddInt("grid-ny", &dots.grid_ny, "dot rows");
+    parser.AddDouble("margin-fraction", &dots.margin_fraction, "monitor fraction left free on each side");
+    parser.AddBool("capture-all-dots", &dots.capture_all_dots, "capture the all-dots frame without sample");
+    parser.AddBool("capture-dark", &dots.capture_dark, "capture a dark bracket with the sample");
+    parser.AddString("sample-state", &dots.sample_state, "sample state of the dot frames");
+  } else {
+    parser.AddString("pattern", &bracket_session.pattern, "pattern of the bracket frames (drivers/pattern_id.h)");
+    parser.AddBool("capture-dark", &bracket_session.capture_dark, "also capture a dark bracket");
+    parser.AddInt("frames-per-exposure", &bracket_session.frames_per_exposure, "frames per exposure");
+  }
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) return Help(parser);
+  if (status.ok() && !exposures.empty()) status = ParseExposureList(exposures, "exposures-us", &bracket.exposures_us);
+  if (!status.ok()) return Fail(status);
+  sync.max_retries = common.max_retries;
+  const std::string plan = PlanText(kind, parser.ToIni());
+
+  RealDevices devices;
+  status = OpenRealDevices(common, &devices);
+  if (!status.ok()) return Fail(status);
+  DeviceFailureTracker tracker;
+  std::unique_ptr<SimDotMonitor> sim_monitor;
+  Projector* display = nullptr;
+  Camera* camera = nullptr;
+  RigInfo rig;
+  SampleChanger change;
+  if (sim) {
+    status = SimDotMonitor::Create(monitor, &sim_monitor);
+    if (!status.ok()) return Fail(status);
+    display = sim_monitor.get();
+    camera = sim_monitor->camera();
+    rig = sim_monitor->rig();
+    if (!(rig.sample.pixel_pitch_m > 0)) {
+      // The simulated monitor rig leaves the sample region to the session: the screen's
+      // footprint around the sample origin, at the monitor's pixel pitch.
+      const double half_w = 0.5 * monitor.monitor_width_px * monitor.monitor_pixel_pitch_m;
+      const double half_h = 0.5 * monitor.monitor_height_px * monitor.monitor_pixel_pitch_m;
+      rig.sample.region_min_m = Eigen::Vector2d(-half_w, -half_h);
+      rig.sample.region_max_m = Eigen::Vector2d(half_w, half_h);
+      rig.sample.pixel_pitch_m = monitor.monitor_pixel_pitch_m;
+    }
+    change = AnySampleState();
+  } else {
+    if (!devices.window) return Fail(Status::Error("thinslab acquire " + kind + ": a real camera needs --display <n>"));
+    display = devices.window.get();
+    camera = devices.camera.get();
+    status = RealRig(common, camera->info(), &rig);
+    if (!status.ok()) return Fail(status);
+    change = OperatorSampleChanger();
+    if (!common.name.empty()) name = common.name;
+  }
+  TeeProjector tee(display, devices.window.get());
+  const bool teed = sim && devices.window;
+  TrackedProjector projector(teed ? static_cast<Projector*>(&tee) : display,
+                             devices.window ? devices.display_name : "monitor (sim)", &tracker);
+  if (dot_scan) {
+    dots.monitor_width_px = sim ? monitor.monitor_width_px : devices.window->width();
+    dots.monitor_height_px = sim ? monitor.monitor_height_px : devices.window->height();
+  }
+  std::string error;
+  if (dot_scan ? !dots.Check(&error) : !bracket_session.Check(&error)) return Fail(Status::Error(error));
+  const int planned = static_cast<int>(dot_scan ? PlanDotScan(dots, display->refresh_period_s()).size()
+                                                : PlanBracketSession(bracket_session, display->refresh_period_s()).size());
+  return Finish(kind, common, plan, planned, MakeHeader(name, dot_scan ? "dot_scan" : "exposure_bracket", rig, sim),
+                camera, sim ? "sim" : common.camera,
+                [&](Camera* cam, SessionWriter* writer) {
+                  return dot_scan ? RunDotScanSession(dots, cam, &projector, change, writer)
+                                  : RunBracketSession(bracket_session, cam, &projector, change, writer);
+                },
+                &tracker);
+}
+
+}  // namespace
+
+int RunAcquire(int argc, char** argv) {
+  const std::string kind = argc > 0 ? argv[0] : "";
+  const char* usage =
+      "usage: thinslab acquire <shadow-maps|laser|dot-scan|bracket> [--camera sim|aravis:<ip>|v4l2:<device>]\n"
+      "       [--display <n>] [--laser <spec>] [--resume] [kind options] OUTPUT\n"
+      "       thinslab acquire <kind> --help lists the options of a kind (and of its simulated rig).\n";
+  if (kind.empty() || kind == "--help" || kind == "-h") {
+    std::cout << usage;
+    return kind.empty() ? 2 : 0;
+  }
+  const bool sim = PeekOption(argc - 1, argv + 1, "camera", "sim") == "sim";
+  if (kind == "shadow-maps") return AcquireShadowMaps(argc - 1, argv + 1, sim);
+  if (kind == "laser") return AcquireLaser(argc - 1, argv + 1, sim);
+  if (kind == "dot-scan") return AcquireDisplaySession(argc - 1, argv + 1, sim, true);
+  if (kind == "bracket") return AcquireDisplaySession(argc - 1, argv + 1, sim, false);
+  std::cerr << "error: thinslab acquire: unknown session kind '" << kind
+            << "' (expected shadow-maps, laser, dot-scan or bracket)\n";
   return 2;
 }
 

@@ -1,0 +1,150 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "acquire/dot_scan_session.h"
+
+#include <sstream>
+
+#include "drivers/pattern_id.h"
+
+namespace thinslab {
+namespace {
+
+std::string Shortest(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+// Grid origin and step from the options.
+void GridGeometry(const DotScanSessionOptions& o, double* x0, double* y0, double* dx, double* dy) {
+  if (o.step_x_px > 0 && o.step_y_px > 0) {
+    *x0 = o.first_x_px;
+    *y0 = o.first_y_px;
+    *dx = o.step_x_px;
+    *dy = o.step_y_px;
+    return;
+  }
+  // Dots on whole-pixel centres, so every dot rasterises the same way.
+  const double span_x = o.monitor_width_px * (1 - 2 * o.margin_fraction);
+  const double span_y = o.monitor_height_px * (1 - 2 * o.margin_fraction);
+  *dx = o.grid_nx > 1 ? std::max(1.0, std::floor(span_x / (o.grid_nx - 1))) : 0;
+  *dy = o.grid_ny > 1 ? std::max(1.0, std::floor(span_y / (o.grid_ny - 1))) : 0;
+  *x0 = std::floor((o.monitor_width_px - *dx * (o.grid_nx - 1)) / 2) + 0.5;
+  *y0 = std::floor((o.monitor_height_px - *dy * (o.grid_ny - 1)) / 2) + 0.5;
+}
+
+}  // namespace
+
+bool DotScanSessionOptions::Check(std::string* error) const {
+  std::ostringstream msg;
+  if (grid_nx < 1 || grid_ny < 1 || grid_nx > 1000 || grid_ny > 1000) {
+    msg << "DotScanSessionOptions::grid_nx, grid_ny = " << grid_nx << ", " << grid_ny
+        << ". Violated constraint: in [1, 1000]";
+  } else if ((step_x_px > 0) != (step_y_px > 0)) {
+    msg << "DotScanSessionOptions::step_x_px and step_y_px must both be > 0 or both 0";
+  } else if (!(step_x_px > 0) && (monitor_width_px <= 0 || monitor_height_px <= 0)) {
+    msg << "DotScanSessionOptions::monitor_width_px, monitor_height_px = " << monitor_width_px << ", "
+        << monitor_height_px << ". Violated constraint: > 0 (or give step_x_px, step_y_px)";
+  } else if (!(margin_fraction >= 0 && margin_fraction < 0.5)) {
+    msg << "DotScanSessionOptions::margin_fraction = " << margin_fraction << ". Violated constraint: [0, 0.5)";
+  } else if (sample_state != "contaminated" && sample_state != "clean" && sample_state != "none") {
+    msg << "DotScanSessionOptions::sample_state = '" << sample_state
+        << "'. Violated constraint: contaminated, clean or none";
+  } else if (!bracket.Check(error) || !sync.Check(error)) {
+    return false;
+  } else {
+    return true;
+  }
+  *error = msg.str();
+  return false;
+}
+
+std::vector<Eigen::Vector2d> DotScanGrid(const DotScanSessionOptions& options) {
+  double x0, y0, dx, dy;
+  GridGeometry(options, &x0, &y0, &dx, &dy);
+  std::vector<Eigen::Vector2d> dots;
+  for (int j = 0; j < options.grid_ny; ++j) {
+    for (int i = 0; i < options.grid_nx; ++i) dots.emplace_back(x0 + i * dx, y0 + j * dy);
+  }
+  return dots;
+}
+
+std::string DotScanGridPattern(const DotScanSessionOptions& options) {
+  double x0, y0, dx, dy;
+  GridGeometry(options, &x0, &y0, &dx, &dy);
+  return "dots:" + Shortest(x0) + "," + Shortest(y0) + "," + Shortest(dx) + "," + Shortest(dy) + "," +
+         std::to_string(options.grid_nx) + "," + std::to_string(options.grid_ny);
+}
+
+std::vector<PlannedFrame> PlanDotScan(const DotScanSessionOptions& options, double refresh_period_s) {
+  ExposureBracketOptions bracket = options.bracket;
+  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = refresh_period_s;
+  const std::vector<double> exposures = PlanExposureBracket(bracket);
+  std::vector<PlannedFrame> plan;
+  if (options.capture_all_dots) {
+    for (double t : exposures) plan.push_back({"all_dots", "none", DotScanGridPattern(options), t, std::nullopt});
+  }
+  if (options.capture_dark) {
+    for (double t : exposures) plan.push_back({"dark", options.sample_state, "", t, std::nullopt});
+  }
+  for (const Eigen::Vector2d& dot : DotScanGrid(options)) {
+    const std::string pattern = DotPatternId(dot.x(), dot.y());
+    for (double t : exposures) plan.push_back({"dot", options.sample_state, pattern, t, dot});
+  }
+  return plan;
+}
+
+Status RunDotScanSession(const DotScanSessionOptions& options, Camera* camera, Projector* monitor,
+                         const SampleChanger& change_sample, SessionWriter* writer) {
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  ExposureBracketOptions bracket = options.bracket;
+  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = monitor->refresh_period_s();
+  return RunSynchronizedPlan(PlanDotScan(options, monitor->refresh_period_s()), bracket, options.sync, camera,
+                             monitor, change_sample, writer);
+}
+
+bool BracketSessionOptions::Check(std::string* error) const {
+  if (frames_per_exposure < 1) {
+    *error = "BracketSessionOptions::frames_per_exposure = " + std::to_string(frames_per_exposure) +
+             ". Violated constraint: >= 1";
+    return false;
+  }
+  PatternSpec spec;
+  const Status parsed = ParsePatternId(pattern, &spec);
+  if (!parsed.ok()) {
+    *error = "BracketSessionOptions::pattern: " + parsed.message();
+    return false;
+  }
+  return bracket.Check(error) && sync.Check(error);
+}
+
+std::vector<PlannedFrame> PlanBracketSession(const BracketSessionOptions& options, double refresh_period_s) {
+  ExposureBracketOptions bracket = options.bracket;
+  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = refresh_period_s;
+  const std::vector<double> exposures = PlanExposureBracket(bracket);
+  std::vector<PlannedFrame> plan;
+  if (options.capture_dark) {
+    for (double t : exposures) {
+      for (int k = 0; k < options.frames_per_exposure; ++k) plan.push_back({"dark", "none", "", t, std::nullopt});
+    }
+  }
+  for (double t : exposures) {
+    for (int k = 0; k < options.frames_per_exposure; ++k) {
+      plan.push_back({"bracket", "none", options.pattern, t, std::nullopt});
+    }
+  }
+  return plan;
+}
+
+Status RunBracketSession(const BracketSessionOptions& options, Camera* camera, Projector* projector,
+                         const SampleChanger& change_sample, SessionWriter* writer) {
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  ExposureBracketOptions bracket = options.bracket;
+  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = projector->refresh_period_s();
+  return RunSynchronizedPlan(PlanBracketSession(options, projector->refresh_period_s()), bracket, options.sync,
+                             camera, projector, change_sample, writer);
+}
+
+}  // namespace thinslab

@@ -1,0 +1,277 @@
+// SPDX-License-Identifier: Apache-2.0
+// Acquisition runs: a device failing mid-session leaves a manifest that says what happened,
+// resume completes the plan without losing or duplicating a frame, and a resume with another
+// plan is refused.
+#include "acquire/session_journal.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "acquire/progress.h"
+#include "acquire/shadow_map_session.h"
+#include "core/file.h"
+#include "core/session_io.h"
+#include "tests/testing/temp_dir.h"
+
+namespace thinslab {
+namespace {
+
+// Returns a frame whose pixels encode the capture number; fails every capture from
+// `fail_from` on (a camera unplugged mid-session).
+class CountingFakeCamera : public Camera {
+ public:
+  explicit CountingFakeCamera(int fail_from = -1) : fail_from_(fail_from) {
+    info_.id = "cam0";
+    info_.model = "fake";
+    info_.width_px = 8;
+    info_.height_px = 6;
+    info_.fx_px = info_.fy_px = 10;
+    info_.cx_px = 3.5;
+    info_.cy_px = 2.5;
+    info_.bit_depth = 12;
+    info_.saturation_dn = 4095;
+  }
+  const CameraInfo& info() const override { return info_; }
+  Status SetExposure(double requested_us, double* applied_us) override {
+    exposure_us_ = std::round(requested_us);
+    *applied_us = exposure_us_;
+    return Status::Ok();
+  }
+  Status Capture(CapturedFrame* frame) override {
+    if (fail_from_ >= 0 && captures_ >= fail_from_) {
+      ++timeouts_;
+      return Status::Error("camera 'cam0' (fake): no buffer within 2 s (timeout)");
+    }
+    frame->raw_dn = Image(8, 6, static_cast<float>(100 + captures_++));
+    frame->exposure_time_us = exposure_us_;
+    frame->timestamp_utc = "2026-11-23T00:00:00Z";
+    return Status::Ok();
+  }
+  std::map<std::string, double> statistics() const override {
+    return {{"completed_buffers", captures_}, {"timeouts", timeouts_}};
+  }
+
+ private:
+  CameraInfo info_;
+  int fail_from_;
+  int captures_ = 0;
+  double timeouts_ = 0;
+  double exposure_us_ = 1000;
+};
+
+class NullProjector : public Projector {
+ public:
+  Status ShowPattern(const std::string&) override { return Status::Ok(); }
+};
+
+Session Header(const CameraInfo& camera) {
+  Session header;
+  header.name = "journal";
+  header.kind = "shadow_map";
+  header.rig.cameras = {camera};
+  header.rig.sample.region_min_m = Eigen::Vector2d(-1e-3, -1e-3);
+  header.rig.sample.region_max_m = Eigen::Vector2d(1e-3, 1e-3);
+  header.rig.sample.pixel_pitch_m = 1e-4;
+  return header;
+}
+
+ShadowMapSessionOptions SmallShadowPlan() {
+  ShadowMapSessionOptions options;
+  options.frames_per_state = 3;
+  options.dark_frames = 2;
+  return options;
+}
+
+Status RunShadow(const std::string& dir, bool resume, const std::string& plan, Camera* camera,
+                 AcquisitionResult* result, std::function<std::string()> stop = nullptr) {
+  AcquisitionRunOptions run;
+  run.session_dir = dir;
+  run.resume = resume;
+  run.plan = plan;
+  run.planned_frames = 8;
+  run.camera_name = "fake";
+  run.stop_check = std::move(stop);
+  NullProjector projector;
+  return RunAcquisition(run, Header(camera->info()), camera,
+                        [&](Camera* cam, SessionWriter* writer) {
+                          return RunShadowMapSession(SmallShadowPlan(), cam, &projector,
+                                                     [](const std::string&) { return Status::Ok(); }, writer);
+                        },
+                        result);
+}
+
+TEST(AcquisitionRun, DeviceFailingMidSessionLeavesAManifestThatSaysWhatHappened) {
+  TempDir dir;
+  CountingFakeCamera camera(/*fail_from=*/5);
+  AcquisitionResult result;
+  const Status status = RunShadow(dir / "s", false, "shadow-maps frames=3", &camera, &result);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("camera 'cam0'"), std::string::npos) << status.message();
+  EXPECT_EQ(result.state, "failed");
+  Session session;
+  ASSERT_TRUE(ReadSession(dir / "s", &session).ok());  // Still a valid capture.
+  ASSERT_TRUE(session.acquisition.present);
+  EXPECT_EQ(session.acquisition.state, "failed");
+  ASSERT_GE(session.acquisition.events.size(), 2u);
+  EXPECT_EQ(session.acquisition.events.front().event, "started");
+  const AcquisitionEvent& last = session.acquisition.events.back();
+  EXPECT_EQ(last.event, "failed");
+  EXPECT_EQ(last.device, "camera 'cam0' (fake)");
+  EXPECT_NE(last.message.find("timeout"), std::string::npos) << last.message;
+  // Five usable frames, then the three attempts at frame 6, recorded as failed.
+  ASSERT_EQ(session.frames.size(), 8u);
+  for (int i = 0; i < 5; ++i) EXPECT_NE(session.frames[i].status, FrameStatus::kFailed);
+  for (int i = 5; i < 8; ++i) {
+    EXPECT_EQ(session.frames[i].status, FrameStatus::kFailed);
+    EXPECT_NE(session.frames[i].error.find("timeout"), std::string::npos);
+  }
+  EXPECT_EQ(session.acquisition.camera_captures, 8);
+  ASSERT_EQ(session.rig.cameras[0].stream_statistics.count("timeouts"), 1u);
+  EXPECT_EQ(session.rig.cameras[0].stream_statistics.at("timeouts"), 3);
+  // The journal tells the same story, line by line.
+  std::string journal;
+  ASSERT_TRUE(ReadFileToString(dir / "s/journal.log", &journal).ok());
+  EXPECT_NE(journal.find("started at 0 frames"), std::string::npos) << journal;
+  EXPECT_NE(journal.find("frame 4 ok"), std::string::npos) << journal;
+  EXPECT_NE(journal.find("frame 7 failed"), std::string::npos) << journal;
+  EXPECT_NE(journal.find("failed at 8 frames: camera 'cam0' (fake)"), std::string::npos) << journal;
+}
+
+TEST(AcquisitionRun, ResumeAfterFailureCompletesWithoutLosingOrDuplicatingFrames) {
+  TempDir dir;
+  AcquisitionResult result;
+  CountingFakeCamera dying(/*fail_from=*/5);
+  ASSERT_FALSE(RunShadow(dir / "s", false, "p", &dying, &result).ok());
+  std::string frame3_before;
+  Session before;
+  ASSERT_TRUE(ReadSession(dir / "s", &before).ok());
+  ASSERT_TRUE(ReadFileToString(dir / ("s/" + before.frames[3].file), &frame3_before).ok());
+
+  CountingFakeCamera healthy;
+  const Status status = RunShadow(dir / "s", true, "p", &healthy, &result);
+  ASSERT_TRUE(status.ok()) << status.message();
+  EXPECT_EQ(result.frames_on_disk_before, 5);
+  EXPECT_EQ(result.frames_captured, 3);
+  EXPECT_EQ(result.camera_captures, 3);  // Nothing captured twice.
+  Session session;
+  ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
+  EXPECT_EQ(session.acquisition.state, "complete");
+  ASSERT_EQ(session.frames.size(), 11u);  // 5 + 3 failed + 3 new.
+  std::set<std::string> files;
+  for (const auto& f : session.frames) {
+    if (f.status != FrameStatus::kFailed) {
+      EXPECT_TRUE(files.insert(f.file).second) << "duplicate " << f.file;
+    }
+  }
+  EXPECT_EQ(files.size(), 8u);
+  EXPECT_EQ(session.UsableFrames("dark").size(), 2u);
+  EXPECT_EQ(session.UsableFrames("reference", "clean").size(), 3u);
+  EXPECT_EQ(session.UsableFrames("shadow", "contaminated").size(), 3u);
+  // The frames before the failure are untouched; the new ones come from the new camera.
+  std::string frame3_after;
+  ASSERT_TRUE(ReadFileToString(dir / ("s/" + session.frames[3].file), &frame3_after).ok());
+  EXPECT_EQ(frame3_before, frame3_after);
+  Image first_new;
+  ASSERT_TRUE(LoadFrame(dir / "s", session, session.frames[8], &first_new).ok());
+  EXPECT_EQ(first_new.at(0, 0), 100.0f);
+  std::vector<std::string> events;
+  for (const auto& e : session.acquisition.events) events.push_back(e.event);
+  EXPECT_EQ(events, (std::vector<std::string>{"started", "failed", "resumed", "completed"}));
+
+  // Resuming a complete session captures nothing.
+  CountingFakeCamera idle;
+  ASSERT_TRUE(RunShadow(dir / "s", true, "p", &idle, &result).ok());
+  EXPECT_TRUE(result.already_complete);
+  EXPECT_EQ(result.camera_captures, 0);
+}
+
+TEST(AcquisitionRun, RefusesAnotherPlanANonEmptyFolderAndNothingToResume) {
+  TempDir dir;
+  AcquisitionResult result;
+  CountingFakeCamera dying(3);
+  ASSERT_FALSE(RunShadow(dir / "s", false, "shadow-maps frames=3", &dying, &result).ok());
+  CountingFakeCamera camera;
+  Status status = RunShadow(dir / "s", true, "shadow-maps frames=4", &camera, &result);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("acquisition.plan"), std::string::npos) << status.message();
+  status = RunShadow(dir / "s", false, "shadow-maps frames=3", &camera, &result);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("--resume"), std::string::npos) << status.message();
+  status = RunShadow(dir / "nothing", true, "shadow-maps frames=3", &camera, &result);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("nothing to resume"), std::string::npos) << status.message();
+  // Refused runs leave the folder as it was.
+  Session session;
+  ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
+  EXPECT_EQ(session.acquisition.state, "failed");
+  EXPECT_EQ(session.frames.size(), 6u);
+}
+
+TEST(AcquisitionRun, StopRequestEndsAsInterruptedAndResumes) {
+  TempDir dir;
+  AcquisitionResult result;
+  CountingFakeCamera camera;
+  int polls = 0;
+  const Status status =
+      RunShadow(dir / "s", false, "p", &camera, &result, [&]() { return ++polls > 4 ? "interrupted by SIGINT" : ""; });
+  ASSERT_FALSE(status.ok());
+  Session session;
+  ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
+  EXPECT_EQ(session.acquisition.state, "interrupted");
+  EXPECT_EQ(session.frames.size(), 4u);
+  CountingFakeCamera again;
+  ASSERT_TRUE(RunShadow(dir / "s", true, "p", &again, &result).ok());
+  ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
+  EXPECT_EQ(session.frames.size(), 8u);
+  EXPECT_EQ(result.camera_captures, 4);
+}
+
+TEST(AcquisitionRun, ResumeRemovesTemporariesOfAKilledWrite) {
+  TempDir dir;
+  AcquisitionResult result;
+  CountingFakeCamera dying(2);
+  ASSERT_FALSE(RunShadow(dir / "s", false, "p", &dying, &result).ok());
+  ASSERT_TRUE(WriteFileAtomically(dir / "s/frames/cam0/dark/0002.png.tmp-123", "partial").ok());
+  CountingFakeCamera camera;
+  ASSERT_TRUE(RunShadow(dir / "s", true, "p", &camera, &result).ok());
+  EXPECT_FALSE(FileExists(dir / "s/frames/cam0/dark/0002.png.tmp-123"));
+}
+
+TEST(AcquisitionRun, ReaderRefusesAnUnknownAcquisitionState) {
+  TempDir dir;
+  AcquisitionResult result;
+  CountingFakeCamera camera;
+  ASSERT_TRUE(RunShadow(dir / "s", false, "p", &camera, &result).ok());
+  std::string text;
+  ASSERT_TRUE(ReadFileToString(dir / "s/session.json", &text).ok());
+  const size_t at = text.find("\"state\": \"complete\"");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, std::string("\"state\": \"complete\"").size(), "\"state\": \"paused\"");
+  ASSERT_TRUE(WriteFileAtomically(dir / "s/session.json", text).ok());
+  Session session;
+  const Status status = ReadSession(dir / "s", &session);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("acquisition.state"), std::string::npos) << status.message();
+  EXPECT_NE(status.message().find("paused"), std::string::npos) << status.message();
+}
+
+TEST(Progress, FormatsDoneTotalRateAndEta) {
+  EXPECT_EQ(FormatProgress(0, 40, 0, 0), "0/40 frames (0%), ETA ?");
+  EXPECT_EQ(FormatProgress(10, 40, 10, 5), "10/40 frames (25%), 2.00 frames/s, ETA 0:15");
+  // Frames skipped on resume do not count towards the rate.
+  EXPECT_EQ(FormatProgress(30, 40, 5, 10), "30/40 frames (75%), 0.50 frames/s, ETA 0:20");
+  EXPECT_EQ(FormatProgress(40, 40, 40, 20), "40/40 frames (100%), 2.00 frames/s, ETA 0:00");
+  std::ostringstream out;
+  ProgressReporter reporter("acquire test", 4, &out, /*is_terminal=*/false, /*line_interval_s=*/0);
+  reporter.Update(1, 0);
+  reporter.Update(4, 0);
+  reporter.Finish("complete");
+  EXPECT_NE(out.str().find("acquire test: 4/4 frames (100%)"), std::string::npos) << out.str();
+  EXPECT_NE(out.str().find("acquire test: complete"), std::string::npos) << out.str();
+}
+
+}  // namespace
+}  // namespace thinslab

@@ -1,0 +1,380 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "drivers/pattern_window.h"
+
+#include <SDL.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <sstream>
+
+#include "core/file.h"
+
+namespace thinslab {
+namespace {
+
+SDL_Window* AsWindow(void* p) { return static_cast<SDL_Window*>(p); }
+SDL_Renderer* AsRenderer(void* p) { return static_cast<SDL_Renderer*>(p); }
+SDL_Texture* AsTexture(void* p) { return static_cast<SDL_Texture*>(p); }
+
+std::string SdlError() {
+  const char* e = SDL_GetError();
+  return e != nullptr && e[0] != '\0' ? std::string(e) : std::string("unknown SDL error");
+}
+
+// Piecewise-linear interpolation through (xs, ys), xs strictly increasing.
+double Interpolate(const std::vector<double>& xs, const std::vector<double>& ys, double x) {
+  if (x <= xs.front()) return ys.front();
+  if (x >= xs.back()) return ys.back();
+  const size_t i = std::upper_bound(xs.begin(), xs.end(), x) - xs.begin();
+  const double t = (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
+  return ys[i - 1] + t * (ys[i] - ys[i - 1]);
+}
+
+Status ValidateGammaTable(const GammaTable& table, const std::string& where) {
+  const auto& p = table.drive_to_light;
+  if (p.size() < 2) return Status::Error(where + ": gamma table needs at least 2 entries");
+  for (size_t i = 0; i < p.size(); ++i) {
+    const auto [d, l] = p[i];
+    if (!std::isfinite(d) || !std::isfinite(l) || d < 0 || d > 1 || l < 0 || l > 1) {
+      return Status::Error(where + ": entry " + std::to_string(i + 1) +
+                           " is outside [0, 1] or not finite");
+    }
+    if (i > 0 && (d <= p[i - 1].first || l < p[i - 1].second)) {
+      return Status::Error(where + ": entry " + std::to_string(i + 1) +
+                           ": drive levels must increase strictly and light must not decrease");
+    }
+  }
+  if (p.front().first != 0 || p.front().second != 0 || p.back().first != 1 ||
+      p.back().second != 1) {
+    return Status::Error(where + ": gamma table must start at \"0 0\" and end at \"1 1\"");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+double GammaTable::LightForDrive(double drive) const {
+  std::vector<double> xs, ys;
+  for (const auto& [d, l] : drive_to_light) {
+    xs.push_back(d);
+    ys.push_back(l);
+  }
+  return Interpolate(xs, ys, drive);
+}
+
+double GammaTable::DriveForLight(double light) const {
+  // Light is non-decreasing in drive; a flat run (a display that does not respond between two
+  // levels) maps to its lowest drive level, so the inverse is well defined.
+  const auto& p = drive_to_light;
+  if (light <= p.front().second) return p.front().first;
+  for (size_t i = 1; i < p.size(); ++i) {
+    if (light <= p[i].second && p[i].second > p[i - 1].second) {
+      const double t = (light - p[i - 1].second) / (p[i].second - p[i - 1].second);
+      return p[i - 1].first + std::clamp(t, 0.0, 1.0) * (p[i].first - p[i - 1].first);
+    }
+  }
+  return p.back().first;
+}
+
+GammaTable IdentityGammaTable() { return GammaTable{{{0.0, 0.0}, {1.0, 1.0}}}; }
+
+Status ReadGammaTable(const std::string& path, GammaTable* table) {
+  std::string bytes;
+  THINSLAB_RETURN_IF_ERROR(ReadFileToString(path, &bytes).WithContext("gamma table"));
+  GammaTable out;
+  std::istringstream in(bytes);
+  std::string line;
+  int line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const size_t hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    std::istringstream fields(line);
+    std::string a, b, extra;
+    if (!(fields >> a)) continue;  // Blank or comment line.
+    const std::string where = path + ":" + std::to_string(line_number);
+    if (!(fields >> b) || (fields >> extra)) {
+      return Status::Error(where + ": expected two numbers \"drive light\"");
+    }
+    char* end_a = nullptr;
+    char* end_b = nullptr;
+    const double d = std::strtod(a.c_str(), &end_a);
+    const double l = std::strtod(b.c_str(), &end_b);
+    if (*end_a != '\0' || *end_b != '\0') {
+      return Status::Error(where + ": \"" + a + " " + b + "\" is not two numbers");
+    }
+    out.drive_to_light.push_back({d, l});
+  }
+  THINSLAB_RETURN_IF_ERROR(ValidateGammaTable(out, path));
+  *table = out;
+  return Status::Ok();
+}
+
+Status WriteGammaTable(const std::string& path, const GammaTable& table) {
+  THINSLAB_RETURN_IF_ERROR(ValidateGammaTable(table, path));
+  std::string text =
+      "# thinslab display gamma table (docs/drivers.md): drive level, relative emitted light\n";
+  char buf[80];
+  for (const auto& [d, l] : table.drive_to_light) {
+    std::snprintf(buf, sizeof(buf), "%.17g %.17g\n", d, l);
+    text += buf;
+  }
+  return WriteFileAtomically(path, text);
+}
+
+Status FitGammaTable(const std::vector<std::pair<double, double>>& level_signal, GammaTable* table) {
+  // Average repeated levels.
+  std::map<double, std::pair<double, int>> by_level;
+  for (size_t i = 0; i < level_signal.size(); ++i) {
+    const auto [level, signal] = level_signal[i];
+    if (!std::isfinite(level) || !std::isfinite(signal) || level < 0 || level > 1) {
+      return Status::Error("FitGammaTable: measurement " + std::to_string(i + 1) +
+                           " has a level outside [0, 1] or a non-finite value");
+    }
+    auto& [sum, count] = by_level[level];
+    sum += signal;
+    ++count;
+  }
+  if (by_level.size() < 3) {
+    return Status::Error("FitGammaTable: need at least 3 distinct drive levels, got " +
+                         std::to_string(by_level.size()));
+  }
+  if (by_level.begin()->first != 0 || by_level.rbegin()->first != 1) {
+    return Status::Error("FitGammaTable: the measurement must include drive levels 0 and 1");
+  }
+  std::vector<double> levels, values, weights;
+  for (const auto& [level, sum_count] : by_level) {
+    levels.push_back(level);
+    values.push_back(sum_count.first / sum_count.second);
+    weights.push_back(sum_count.second);
+  }
+  // Pool adjacent violators: the weighted least-squares non-decreasing fit. Camera noise makes
+  // neighbouring levels of a nearly flat (dark) region swap order; the display itself is
+  // monotonic, and the inverse lookup needs monotonic data.
+  struct Block {
+    double value, weight;
+    size_t count;
+  };
+  std::vector<Block> blocks;
+  for (size_t i = 0; i < values.size(); ++i) {
+    blocks.push_back({values[i], weights[i], 1});
+    while (blocks.size() > 1 && blocks[blocks.size() - 2].value > blocks.back().value) {
+      Block b = blocks.back();
+      blocks.pop_back();
+      Block& a = blocks.back();
+      a.value = (a.value * a.weight + b.value * b.weight) / (a.weight + b.weight);
+      a.weight += b.weight;
+      a.count += b.count;
+    }
+  }
+  std::vector<double> fitted;
+  for (const Block& b : blocks) fitted.insert(fitted.end(), b.count, b.value);
+  const double s0 = fitted.front(), s1 = fitted.back();
+  if (!(s1 > s0)) {
+    return Status::Error(
+        "FitGammaTable: the signal at drive level 1 is not above the signal at level 0 (camera "
+        "not seeing the display, or saturated at every level)");
+  }
+  GammaTable out;
+  for (size_t i = 0; i < levels.size(); ++i) {
+    out.drive_to_light.push_back({levels[i], std::clamp((fitted[i] - s0) / (s1 - s0), 0.0, 1.0)});
+  }
+  out.drive_to_light.front().second = 0;
+  out.drive_to_light.back().second = 1;
+  *table = out;
+  return Status::Ok();
+}
+
+std::vector<std::string> GammaMeasurementPatterns(int steps) {
+  std::vector<std::string> ids;
+  steps = std::max(steps, 2);
+  for (int i = 0; i <= steps; ++i) ids.push_back(FlatPatternId(static_cast<double>(i) / steps));
+  return ids;
+}
+
+double ExposureAsRefreshMultiple(double requested_s, double refresh_period_s) {
+  if (!(refresh_period_s > 0) || !std::isfinite(refresh_period_s)) return requested_s;
+  const double n = std::max(1.0, std::round(requested_s / refresh_period_s));
+  return n * refresh_period_s;
+}
+
+PatternWindow::~PatternWindow() {
+  if (texture_ != nullptr) SDL_DestroyTexture(AsTexture(texture_));
+  if (renderer_ != nullptr) SDL_DestroyRenderer(AsRenderer(renderer_));
+  if (window_ != nullptr) SDL_DestroyWindow(AsWindow(window_));
+  if (owns_sdl_video_) SDL_QuitSubSystem(SDL_INIT_VIDEO);
+}
+
+Status PatternWindow::Present() {
+  SDL_Event event;
+  while (SDL_PollEvent(&event) != 0) {
+    if (event.type == SDL_QUIT ||
+        (event.type == SDL_WINDOWEVENT && event.window.event == SDL_WINDOWEVENT_CLOSE)) {
+      return Status::Error("pattern window on display " + std::to_string(options_.display_index) +
+                           " was closed");
+    }
+  }
+  SDL_Renderer* renderer = AsRenderer(renderer_);
+  if (SDL_RenderClear(renderer) != 0 ||
+      SDL_RenderCopy(renderer, AsTexture(texture_), nullptr, nullptr) != 0) {
+    return Status::Error("pattern window on display " + std::to_string(options_.display_index) +
+                         ": rendering failed: " + SdlError());
+  }
+  SDL_RenderPresent(renderer);
+  return Status::Ok();
+}
+
+Status PatternWindow::ShowPattern(const std::string& pattern) {
+  PatternSpec spec;
+  THINSLAB_RETURN_IF_ERROR(ParsePatternId(pattern, &spec));
+  Image linear;
+  THINSLAB_RETURN_IF_ERROR(
+      RasterizePattern(spec, width_, height_, options_.dot_radius_px, &linear));
+  // Inverse gamma through a 4096-entry lookup table of drive levels (linear light is smooth, so
+  // 4096 steps is far below the 8-bit output step).
+  constexpr int kLut = 4096;
+  std::vector<uint8_t> lut(kLut + 1);
+  for (int i = 0; i <= kLut; ++i) {
+    lut[i] = static_cast<uint8_t>(std::lround(255 * gamma_.DriveForLight(double(i) / kLut)));
+  }
+  last_drive_.resize(linear.num_pixels());
+  std::vector<uint32_t> argb(linear.num_pixels());
+  const std::vector<float>& v = linear.data();
+  for (size_t i = 0; i < v.size(); ++i) {
+    const uint8_t d = lut[std::lround(std::clamp(v[i], 0.0f, 1.0f) * kLut)];
+    last_drive_[i] = d;
+    argb[i] = 0xff000000u | (uint32_t{d} << 16) | (uint32_t{d} << 8) | d;
+  }
+  if (SDL_UpdateTexture(AsTexture(texture_), nullptr, argb.data(), width_ * 4) != 0) {
+    return Status::Error("pattern window: texture upload failed: " + SdlError());
+  }
+  // With vsync each present blocks until the next vertical blank: the first puts the pattern in
+  // the queue, the following ones guarantee it has been scanned out at least once completely.
+  for (int i = 0; i <= options_.settle_presents; ++i) THINSLAB_RETURN_IF_ERROR(Present());
+  if (options_.settle_s > 0) SDL_Delay(static_cast<Uint32>(std::lround(options_.settle_s * 1e3)));
+  return Status::Ok();
+}
+
+Status PatternWindow::ReadBackFramebuffer(Image* image) {
+  SDL_Renderer* renderer = AsRenderer(renderer_);
+  // The back buffer is undefined after a present: draw the current texture again, read, present.
+  if (SDL_RenderClear(renderer) != 0 ||
+      SDL_RenderCopy(renderer, AsTexture(texture_), nullptr, nullptr) != 0) {
+    return Status::Error("pattern window: rendering failed: " + SdlError());
+  }
+  std::vector<uint32_t> argb(static_cast<size_t>(width_) * height_);
+  if (SDL_RenderReadPixels(renderer, nullptr, SDL_PIXELFORMAT_ARGB8888, argb.data(), width_ * 4) !=
+      0) {
+    return Status::Error("pattern window: SDL_RenderReadPixels failed: " + SdlError());
+  }
+  SDL_RenderPresent(renderer);
+  Image out(width_, height_, 0.0f);
+  for (size_t i = 0; i < argb.size(); ++i) {
+    const uint32_t p = argb[i];
+    out.data()[i] = static_cast<float>(((p >> 16) & 0xff) + ((p >> 8) & 0xff) + (p & 0xff)) / 3.0f;
+  }
+  *image = std::move(out);
+  return Status::Ok();
+}
+
+Status OpenPatternWindow(const PatternWindowOptions& options, std::unique_ptr<PatternWindow>* out) {
+  const std::string name = "display " + std::to_string(options.display_index);
+  if (!(options.dot_radius_px > 0) || !(options.settle_s >= 0) || options.settle_presents < 0 ||
+      options.width_px < 0 || options.height_px < 0) {
+    return Status::Error(name +
+                         ": PatternWindowOptions need dot_radius_px > 0, settle_s >= 0, "
+                         "settle_presents >= 0 and non-negative width/height");
+  }
+  std::unique_ptr<PatternWindow> w(new PatternWindow());
+  w->options_ = options;
+  w->gamma_ = IdentityGammaTable();
+  if (!options.gamma_table_path.empty()) {
+    THINSLAB_RETURN_IF_ERROR(ReadGammaTable(options.gamma_table_path, &w->gamma_));
+  }
+  // A fullscreen pattern window must stay up when the operator clicks on another monitor.
+  SDL_SetHint(SDL_HINT_VIDEO_MINIMIZE_ON_FOCUS_LOSS, "0");
+  // One texel per screen pixel: any filtering would move sub-pixel dots.
+  SDL_SetHint(SDL_HINT_RENDER_SCALE_QUALITY, "nearest");
+  if (SDL_InitSubSystem(SDL_INIT_VIDEO) != 0) {
+    const char* display = std::getenv("DISPLAY");
+    return Status::Error(name + ": SDL video initialisation failed (DISPLAY=" +
+                         (display != nullptr ? display : "<unset>") + "): " + SdlError());
+  }
+  w->owns_sdl_video_ = true;
+  const int count = SDL_GetNumVideoDisplays();
+  if (count < 1) {
+    return Status::Error(name + ": SDL finds no displays: " + SdlError());
+  }
+  if (options.display_index < 0 || options.display_index >= count) {
+    return Status::Error("display index " + std::to_string(options.display_index) +
+                         " is out of range: " + std::to_string(count) +
+                         " display(s) available (indices 0.." + std::to_string(count - 1) + ")");
+  }
+  SDL_DisplayMode mode;
+  if (SDL_GetCurrentDisplayMode(options.display_index, &mode) != 0) {
+    return Status::Error(name + ": SDL_GetCurrentDisplayMode failed: " + SdlError());
+  }
+  // SDL reports 0 Hz when the driver does not know (e.g. Xvfb without RandR rates).
+  w->refresh_period_s_ = mode.refresh_rate > 0 ? 1.0 / mode.refresh_rate : 0;
+  int width = options.width_px > 0 ? options.width_px : mode.w;
+  int height = options.height_px > 0 ? options.height_px : mode.h;
+  Uint32 flags = SDL_WINDOW_SHOWN | SDL_WINDOW_BORDERLESS;
+  if (options.fullscreen) {
+    // Desktop fullscreen keeps the display's native mode, so pattern pixels are screen pixels.
+    if ((options.width_px > 0 && options.width_px != mode.w) ||
+        (options.height_px > 0 && options.height_px != mode.h)) {
+      return Status::Error(name + ": fullscreen uses the display's mode " + std::to_string(mode.w) +
+                           "x" + std::to_string(mode.h) + ", not the requested " +
+                           std::to_string(options.width_px) + "x" +
+                           std::to_string(options.height_px));
+    }
+    width = mode.w;
+    height = mode.h;
+    flags |= SDL_WINDOW_FULLSCREEN_DESKTOP;
+  }
+  SDL_Window* window = SDL_CreateWindow(
+      "thinslab pattern", SDL_WINDOWPOS_UNDEFINED_DISPLAY(options.display_index),
+      SDL_WINDOWPOS_UNDEFINED_DISPLAY(options.display_index), width, height, flags);
+  if (window == nullptr) {
+    return Status::Error(name + ": SDL_CreateWindow failed: " + SdlError());
+  }
+  w->window_ = window;
+  SDL_Renderer* renderer =
+      SDL_CreateRenderer(window, -1, SDL_RENDERER_ACCELERATED | SDL_RENDERER_PRESENTVSYNC);
+  if (renderer == nullptr) {
+    // No GPU (e.g. Xvfb): the software renderer still places every pixel exactly.
+    renderer = SDL_CreateRenderer(window, -1, SDL_RENDERER_SOFTWARE);
+  }
+  if (renderer == nullptr) {
+    return Status::Error(name + ": SDL_CreateRenderer failed: " + SdlError());
+  }
+  w->renderer_ = renderer;
+  SDL_RendererInfo renderer_info;
+  if (SDL_GetRendererInfo(renderer, &renderer_info) == 0 && renderer_info.name != nullptr) {
+    w->renderer_name_ = renderer_info.name;
+  }
+  SDL_SetRenderDrawColor(renderer, 0, 0, 0, 255);
+  // The window manager may resize the fullscreen window asynchronously: let it settle, then use
+  // the renderer's actual output size (pixels, also on HiDPI).
+  SDL_PumpEvents();
+  if (SDL_GetRendererOutputSize(renderer, &w->width_, &w->height_) != 0 || w->width_ <= 0 ||
+      w->height_ <= 0) {
+    return Status::Error(name + ": SDL_GetRendererOutputSize failed: " + SdlError());
+  }
+  SDL_Texture* texture = SDL_CreateTexture(renderer, SDL_PIXELFORMAT_ARGB8888,
+                                           SDL_TEXTUREACCESS_STREAMING, w->width_, w->height_);
+  if (texture == nullptr) {
+    return Status::Error(name + ": SDL_CreateTexture failed: " + SdlError());
+  }
+  w->texture_ = texture;
+  SDL_ShowCursor(SDL_DISABLE);
+  THINSLAB_RETURN_IF_ERROR(w->ShowPattern(""));
+  *out = std::move(w);
+  return Status::Ok();
+}
+
+}  // namespace thinslab

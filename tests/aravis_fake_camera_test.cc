@@ -1,0 +1,545 @@
+// SPDX-License-Identifier: Apache-2.0
+// AravisCamera end to end against Aravis's own GigE Vision fake camera (ArvGvFakeCamera),
+// started in this process on 127.0.0.1 and opened by IP through the real GigE Vision stack
+// (GVCP control, GVSP stream) over loopback. Its frames come from a callback: test patterns,
+// or the simulated shadow-map rig, so a whole capture session runs through the stack. No
+// discovery broadcast is ever sent; all traffic stays on 127.0.0.1.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <cmath>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "acquire/capture_with_retries.h"
+#include "acquire/shadow_map_session.h"
+#include "core/session_io.h"
+#include "drivers/aravis_camera.h"
+#include "drivers/aravis_fake_camera.h"
+#include "sim/contamination_pattern.h"
+#include "sim/shadow_map_rig.h"
+#include "tests/testing/temp_dir.h"
+
+namespace thinslab {
+namespace {
+
+constexpr int kWidth = 160;
+constexpr int kHeight = 120;
+
+// A pattern that differs per frame and uses the high byte, so byte order and frame mix-ups show.
+Image TestPattern(int width, int height, uint64_t index, double max_dn) {
+  Image image(width, height);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const double v = std::fmod(257.0 * x + 31.0 * y + 1009.0 * static_cast<double>(index), max_dn + 1);
+      image.at(x, y) = static_cast<float>(v);
+    }
+  }
+  return image;
+}
+
+// Serves TestPattern and remembers every image it handed to the fake.
+class PatternSource {
+ public:
+  explicit PatternSource(double max_dn) : max_dn_(max_dn) {}
+  AravisFakeFrameSource callback() {
+    return [this](const AravisFakeFrameRequest& request, Image* raw_dn) {
+      *raw_dn = TestPattern(request.width_px, request.height_px, request.index, max_dn_);
+      std::lock_guard<std::mutex> lock(mutex_);
+      requests_.push_back(request);
+      images_.push_back(*raw_dn);
+      return Status::Ok();
+    };
+  }
+  Image image(size_t i) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return images_.at(i);
+  }
+  AravisFakeFrameRequest request(size_t i) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return requests_.at(i);
+  }
+  size_t count() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return images_.size();
+  }
+
+ private:
+  double max_dn_;
+  mutable std::mutex mutex_;
+  std::vector<AravisFakeFrameRequest> requests_;
+  std::vector<Image> images_;
+};
+
+AravisCameraOptions CameraOptions(const AravisFakeCamera& fake) {
+  AravisCameraOptions options;
+  options.address = fake.address();
+  options.width_px = kWidth;
+  options.height_px = kHeight;
+  options.frame_timeout_s = 0.5;
+  options.connect_timeout_s = 0.5;
+  return options;
+}
+
+bool SameImage(const Image& a, const Image& b) {
+  if (a.width() != b.width() || a.height() != b.height()) return false;
+  for (int y = 0; y < a.height(); ++y) {
+    for (int x = 0; x < a.width(); ++x) {
+      if (a.at(x, y) != b.at(x, y)) return false;
+    }
+  }
+  return true;
+}
+
+double Mean(const Image& image) {
+  double sum = 0;
+  for (int y = 0; y < image.height(); ++y) {
+    for (int x = 0; x < image.width(); ++x) sum += image.at(x, y);
+  }
+  return sum / (static_cast<double>(image.width()) * image.height());
+}
+
+double Stat(const std::map<std::string, double>& stats, const std::string& key) {
+  const auto it = stats.find(key);
+  EXPECT_NE(it, stats.end()) << "statistics() lacks \"" << key << "\"";
+  return it == stats.end() ? -1 : it->second;
+}
+
+TEST(AravisFakeCamera, OpensByIpAndDeliversTheInjectedMono16ImageExactly) {
+  PatternSource source(65535);
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), source.callback(), &fake).ok());
+  std::unique_ptr<AravisCamera> camera;
+  const Status open = OpenAravisCamera(CameraOptions(*fake), &camera);
+  ASSERT_TRUE(open.ok()) << open.message();
+
+  EXPECT_EQ(camera->info().width_px, kWidth);
+  EXPECT_EQ(camera->info().height_px, kHeight);
+  EXPECT_EQ(camera->info().model, "aravis");
+  EXPECT_EQ(camera->info().serial, "TSFAKE01");
+  EXPECT_EQ(camera->info().bit_depth, 16);
+  EXPECT_EQ(camera->info().saturation_dn, 65535);
+  EXPECT_NE(camera->device_name().find("127.0.0.1"), std::string::npos);
+  // Packet size read back from the camera (the fake's default is 1400 bytes).
+  EXPECT_GT(camera->packet_size_bytes(), 0);
+
+  for (int i = 0; i < 3; ++i) {
+    CapturedFrame frame;
+    const Status status = camera->Capture(&frame);
+    ASSERT_TRUE(status.ok()) << status.message();
+    ASSERT_EQ(source.count(), static_cast<size_t>(i + 1));
+    EXPECT_TRUE(SameImage(frame.raw_dn, source.image(i))) << "frame " << i;
+    EXPECT_EQ(frame.timestamp_utc.size(), 24u) << frame.timestamp_utc;  // 2026-11-23T18:00:00.000Z
+  }
+  const auto stats = camera->statistics();
+  EXPECT_EQ(Stat(stats, "completed_buffers"), 3);
+  EXPECT_EQ(Stat(stats, "failed_buffers"), 0);
+  EXPECT_EQ(Stat(stats, "missing_packets"), 0);
+  EXPECT_EQ(Stat(stats, "timeouts"), 0);
+  EXPECT_EQ(Stat(stats, "packet_size_bytes"), camera->packet_size_bytes());
+  EXPECT_EQ(fake->source_errors(), 0u) << fake->last_source_error();
+}
+
+TEST(AravisFakeCamera, Mono8AndAnExplicitPacketSizeAreReadBack) {
+  PatternSource source(255);
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), source.callback(), &fake).ok());
+  AravisCameraOptions options = CameraOptions(*fake);
+  options.pixel_format = "Mono8";
+  options.packet_size = 4000;  // Loopback carries it; a real link needs jumbo frames for this.
+  std::unique_ptr<AravisCamera> camera;
+  const Status open = OpenAravisCamera(options, &camera);
+  ASSERT_TRUE(open.ok()) << open.message();
+  EXPECT_EQ(camera->info().bit_depth, 8);
+  EXPECT_EQ(camera->packet_size_bytes(), 4000);
+  CapturedFrame frame;
+  const Status status = camera->Capture(&frame);
+  ASSERT_TRUE(status.ok()) << status.message();
+  EXPECT_EQ(source.request(0).pixel_format, "Mono8");
+  EXPECT_TRUE(SameImage(frame.raw_dn, source.image(0)));
+}
+
+TEST(AravisFakeCamera, UnofferedOrUnreadablePixelFormatsAreRefusedByName) {
+  PatternSource source(65535);
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), source.callback(), &fake).ok());
+  std::unique_ptr<AravisCamera> probe;
+  ASSERT_TRUE(OpenAravisCamera(CameraOptions(*fake), &probe).ok());
+  const std::vector<std::string> offered = probe->offered_pixel_formats();
+  probe.reset();
+  const bool offers_mono12 = std::find(offered.begin(), offered.end(), "Mono12") != offered.end();
+
+  AravisCameraOptions options = CameraOptions(*fake);
+  options.pixel_format = "Mono12";
+  std::unique_ptr<AravisCamera> camera;
+  const Status mono12 = OpenAravisCamera(options, &camera);
+  if (offers_mono12) {
+    ASSERT_TRUE(mono12.ok()) << mono12.message();
+    EXPECT_EQ(camera->info().bit_depth, 12);
+    camera.reset();
+  } else {
+    // Aravis 0.8.26's fake offers Mono8, Mono16, RGB8 and Bayer*8, not Mono12.
+    ASSERT_FALSE(mono12.ok());
+    EXPECT_NE(mono12.message().find("127.0.0.1"), std::string::npos) << mono12.message();
+    EXPECT_NE(mono12.message().find("'Mono12' is not offered"), std::string::npos) << mono12.message();
+    EXPECT_NE(mono12.message().find("Mono8"), std::string::npos) << mono12.message();
+    EXPECT_NE(mono12.message().find("Mono16"), std::string::npos) << mono12.message();
+  }
+
+  options.pixel_format = "RGB8";  // Offered, but not a single-channel format.
+  const Status rgb = OpenAravisCamera(options, &camera);
+  ASSERT_FALSE(rgb.ok());
+  EXPECT_NE(rgb.message().find("'RGB8' is offered but thinslab reads only"), std::string::npos) << rgb.message();
+}
+
+TEST(AravisFakeCamera, ExposureIsReadBackAsTheCameraRoundedIt) {
+  PatternSource source(65535);
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), source.callback(), &fake).ok());
+  std::unique_ptr<AravisCamera> camera;
+  ASSERT_TRUE(OpenAravisCamera(CameraOptions(*fake), &camera).ok());
+  double applied_us = 0;
+  ASSERT_TRUE(camera->SetExposure(12345.6, &applied_us).ok());
+  EXPECT_EQ(applied_us, 12345);  // The fake keeps whole microseconds.
+  CapturedFrame frame;
+  ASSERT_TRUE(camera->Capture(&frame).ok());
+  EXPECT_EQ(frame.exposure_time_us, 12345);
+  EXPECT_EQ(source.request(0).exposure_time_us, 12345);  // What the camera exposed with.
+
+  const Status too_long = camera->SetExposure(1e9, &applied_us);
+  ASSERT_FALSE(too_long.ok());
+  EXPECT_NE(too_long.message().find("127.0.0.1"), std::string::npos) << too_long.message();
+  EXPECT_NE(too_long.message().find("outside the camera's range"), std::string::npos) << too_long.message();
+}
+
+TEST(AravisFakeCamera, FrameIdsIncreaseAcrossTheSixteenBitWrap) {
+  PatternSource source(65535);
+  AravisFakeCameraOptions fake_options;
+  fake_options.frame_period_us = 2000;
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(fake_options, source.callback(), &fake).ok());
+  std::unique_ptr<AravisCamera> camera;
+  ASSERT_TRUE(OpenAravisCamera(CameraOptions(*fake), &camera).ok());
+  // The fake's GVSP block ids start near 65400, so 150 frames cross the 16-bit wrap.
+  uint64_t previous = 0;
+  for (int i = 0; i < 150; ++i) {
+    CapturedFrame frame;
+    const Status status = camera->Capture(&frame);
+    ASSERT_TRUE(status.ok()) << "frame " << i << ": " << status.message();
+    if (i > 0) {
+      ASSERT_EQ(frame.frame_id, previous + 1) << "frame " << i;
+    }
+    previous = frame.frame_id;
+  }
+  EXPECT_GT(previous, 0xffffu);
+}
+
+// A whole shadow-map session (acquire/shadow_map_session, unchanged) through the GigE stack:
+// the simulated rig renders each frame inside the fake camera's fill callback, at the
+// exposure the session set over GVCP, in the light state the session's projector and sample
+// changer chose.
+TEST(AravisFakeCamera, ShadowMapSessionRunsThroughTheGigEStackAndLogsStreamStatistics) {
+  SimShadowMapOptions rig_options;
+  rig_options.camera_width_px = kWidth;
+  rig_options.camera_height_px = kHeight;
+  rig_options.render_supersample = 1;
+  rig_options.monte_carlo.num_photons = 20000;
+  ContaminationPatternOptions pattern;
+  pattern.width_px = 40;
+  pattern.height_px = 30;
+  const Image tau = GenerateContaminationPattern(pattern);
+  std::unique_ptr<SimShadowMapRig> rig;
+  const Status created = SimShadowMapRig::Create(rig_options, tau, &rig);
+  ASSERT_TRUE(created.ok()) << created.message();
+
+  std::mutex mutex;
+  std::vector<Image> served;
+  Camera* sim_camera = rig->camera();
+  AravisFakeFrameSource render = [&](const AravisFakeFrameRequest& request, Image* raw_dn) {
+    double applied = 0;
+    THINSLAB_RETURN_IF_ERROR(sim_camera->SetExposure(request.exposure_time_us, &applied));
+    CapturedFrame frame;
+    THINSLAB_RETURN_IF_ERROR(sim_camera->Capture(&frame));
+    *raw_dn = frame.raw_dn;
+    std::lock_guard<std::mutex> lock(mutex);
+    served.push_back(frame.raw_dn);
+    return Status::Ok();
+  };
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), render, &fake).ok());
+  AravisCameraOptions options = CameraOptions(*fake);
+  options.bit_depth = rig->rig_info().cameras[0].bit_depth;  // 12-bit sensor in a Mono16 container.
+  std::unique_ptr<AravisCamera> camera;
+  const Status open = OpenAravisCamera(options, &camera);
+  ASSERT_TRUE(open.ok()) << open.message();
+
+  TempDir dir;
+  Session header;
+  header.name = "aravis_fake";
+  header.kind = "shadow_map";
+  header.software = "aravis_fake_camera_test";
+  header.rig = rig->rig_info();
+  CameraInfo& cam0 = header.rig.cameras[0];
+  ASSERT_EQ(cam0.id, camera->info().id);
+  cam0.model = camera->info().model;
+  cam0.serial = camera->info().serial;
+  SessionWriter writer;
+  ASSERT_TRUE(writer.Open(dir / "s", header).ok());
+  ShadowMapSessionOptions session_options;
+  session_options.frames_per_state = 2;
+  session_options.dark_frames = 1;
+  const Status run = RunShadowMapSession(session_options, camera.get(), rig->projector(), rig->sample_changer(), &writer);
+  ASSERT_TRUE(run.ok()) << run.message();
+  EXPECT_EQ(fake->source_errors(), 0u) << fake->last_source_error();
+
+  Session session;
+  const Status read = ReadSession(dir / "s", &session);
+  ASSERT_TRUE(read.ok()) << read.message();
+  ASSERT_EQ(session.frames.size(), 5u);
+  ASSERT_EQ(served.size(), 5u);
+  const double black = session.rig.cameras[0].black_level_dn;
+  std::vector<double> means;
+  for (size_t i = 0; i < session.frames.size(); ++i) {
+    const FrameRecord& f = session.frames[i];
+    EXPECT_EQ(f.status, FrameStatus::kOk) << f.error;
+    EXPECT_EQ(f.exposure_time_us, 20000);
+    Image loaded;
+    ASSERT_TRUE(LoadFrame(dir / "s", session, f, &loaded).ok());
+    // The stored frame is the rig's image, through GVSP, to the DN.
+    Image expected = served[i];
+    for (float& v : expected.data()) v = static_cast<float>(std::round(v) - black);
+    EXPECT_TRUE(SameImage(loaded, expected)) << "frame " << i << " (" << f.kind << ")";
+    means.push_back(Mean(loaded));
+  }
+  // The light state reached the frames: dark < shadow < reference.
+  EXPECT_LT(means[0], 0.2 * means[1]);
+  EXPECT_LT(means[3], means[1]);
+
+  const auto& stats = session.rig.cameras[0].stream_statistics;
+  ASSERT_FALSE(stats.empty()) << "session.json lacks rig.cameras[0].stream_statistics";
+  // Recorded with the last frame: all five buffers completed, nothing lost.
+  EXPECT_EQ(Stat(stats, "completed_buffers"), 5);
+  EXPECT_EQ(Stat(stats, "failed_buffers"), 0);
+  EXPECT_EQ(Stat(stats, "missing_packets"), 0);
+  EXPECT_EQ(Stat(stats, "timeouts"), 0);
+  EXPECT_EQ(Stat(stats, "packet_size_bytes"), camera->packet_size_bytes());
+}
+
+// Captures `count` frames with CaptureWithRetries into a session and returns it.
+void CaptureFrames(Camera* camera, int count, int max_retries, const std::string& dir, Session* session) {
+  Session header;
+  header.name = "lossy";
+  header.kind = "test";
+  header.rig.cameras = {camera->info()};
+  header.rig.sample.region_min_m = Eigen::Vector2d(-1e-3, -1e-3);
+  header.rig.sample.region_max_m = Eigen::Vector2d(1e-3, 1e-3);
+  header.rig.sample.pixel_pitch_m = 1e-4;
+  SessionWriter writer;
+  ASSERT_TRUE(writer.Open(dir, header).ok());
+  FrameRecord templ;
+  templ.camera_id = camera->info().id;
+  templ.kind = "reference";
+  templ.sample_state = "clean";
+  for (int i = 0; i < count; ++i) {
+    const Status status = CaptureWithRetries(camera, templ, max_retries, &writer);
+    ASSERT_TRUE(status.ok()) << status.message();
+  }
+  ASSERT_TRUE(ReadSession(dir, session).ok());
+}
+
+// Every usable frame of `session` must be exactly one of the images the fake served.
+void ExpectUsableFramesAreComplete(const std::string& dir, const Session& session, const PatternSource& source) {
+  int usable = 0;
+  for (const FrameRecord& f : session.frames) {
+    if (f.status == FrameStatus::kFailed) continue;
+    ++usable;
+    Image loaded;
+    ASSERT_TRUE(LoadFrame(dir, session, f, &loaded).ok());
+    bool found = false;
+    for (size_t i = 0; i < source.count() && !found; ++i) found = SameImage(loaded, source.image(i));
+    EXPECT_TRUE(found) << "frame " << f.index << " matches no served image: delivered incomplete";
+  }
+  EXPECT_EQ(usable, 6);
+}
+
+// gvsp-lost-ratio drops 2% of GVSP packets: a 160x120 Mono16 frame is 30 packets, so about
+// 45% of frames lose one. With resend on, Aravis asks for the missing packets; Aravis 0.8.26's
+// fake camera does not answer PACKET_RESEND (its control loop has no case for it), so the
+// frames still fail, and CaptureWithRetries records them and triggers again.
+TEST(AravisFakeCamera, LostPacketsWithResendOnAreCountedAndOnlyCompleteFramesAreKept) {
+  PatternSource source(65535);
+  AravisFakeCameraOptions fake_options;
+  fake_options.gvsp_lost_ratio = 0.02;
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(fake_options, source.callback(), &fake).ok());
+  AravisCameraOptions options = CameraOptions(*fake);
+  options.packet_resend = 1;
+  std::unique_ptr<AravisCamera> camera;
+  ASSERT_TRUE(OpenAravisCamera(options, &camera).ok());
+  TempDir dir;
+  Session session;
+  CaptureFrames(camera.get(), 6, 15, dir / "s", &session);
+  ExpectUsableFramesAreComplete(dir / "s", session, source);
+
+  const auto& stats = session.rig.cameras[0].stream_statistics;
+  EXPECT_GT(Stat(stats, "missing_packets"), 0);
+  EXPECT_GT(Stat(stats, "resend_requests"), 0);
+  EXPECT_GE(Stat(stats, "resent_packets"), 0);  // 0 with this fake; counted on real cameras.
+  EXPECT_GT(Stat(stats, "failed_buffers"), 0);
+  EXPECT_EQ(Stat(stats, "completed_buffers"), 6);
+  int failed = 0;
+  for (const FrameRecord& f : session.frames) {
+    if (f.status != FrameStatus::kFailed) continue;
+    ++failed;
+    EXPECT_NE(f.error.find("incomplete"), std::string::npos) << f.error;
+    EXPECT_NE(f.error.find("127.0.0.1"), std::string::npos) << f.error;
+  }
+  EXPECT_EQ(failed, Stat(stats, "failed_buffers"));
+}
+
+TEST(AravisFakeCamera, LostPacketsWithResendOffFailAndAreRecordedAsFailed) {
+  PatternSource source(65535);
+  AravisFakeCameraOptions fake_options;
+  fake_options.gvsp_lost_ratio = 0.02;
+  fake_options.random_seed = 7;
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(fake_options, source.callback(), &fake).ok());
+  AravisCameraOptions options = CameraOptions(*fake);
+  options.packet_resend = 0;
+  std::unique_ptr<AravisCamera> camera;
+  ASSERT_TRUE(OpenAravisCamera(options, &camera).ok());
+  TempDir dir;
+  Session session;
+  CaptureFrames(camera.get(), 6, 15, dir / "s", &session);
+  ExpectUsableFramesAreComplete(dir / "s", session, source);
+
+  const auto& stats = session.rig.cameras[0].stream_statistics;
+  EXPECT_GT(Stat(stats, "missing_packets"), 0);
+  EXPECT_EQ(Stat(stats, "resend_requests"), 0);
+  int failed = 0, retried = 0;
+  for (const FrameRecord& f : session.frames) {
+    if (f.status == FrameStatus::kFailed) {
+      ++failed;
+      EXPECT_NE(f.error.find("packet resend off"), std::string::npos) << f.error;
+    }
+    if (f.status == FrameStatus::kRetried) ++retried;
+  }
+  EXPECT_GT(failed, 0);
+  EXPECT_GT(retried, 0);
+  EXPECT_EQ(failed, Stat(stats, "failed_buffers"));
+}
+
+// Idle gaps between triggers longer than both the frame timeout and the camera's heartbeat
+// timeout: Aravis's heartbeat keeps control and the stream stays armed.
+TEST(AravisFakeCamera, CaptureAfterAnIdleGapLongerThanTheHeartbeatTimeout) {
+  PatternSource source(65535);
+  AravisFakeCameraOptions fake_options;
+  fake_options.heartbeat_timeout_ms = 1500;
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(fake_options, source.callback(), &fake).ok());
+  std::unique_ptr<AravisCamera> camera;
+  ASSERT_TRUE(OpenAravisCamera(CameraOptions(*fake), &camera).ok());
+  CapturedFrame frame;
+  ASSERT_TRUE(camera->Capture(&frame).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(2000));
+  const Status status = camera->Capture(&frame);
+  ASSERT_TRUE(status.ok()) << status.message();
+  EXPECT_TRUE(SameImage(frame.raw_dn, source.image(1)));
+  EXPECT_EQ(Stat(camera->statistics(), "timeouts"), 0);
+}
+
+// The camera drops our control channel during an idle gap (heartbeat lost, camera reset):
+// the next Capture retakes control, restarts acquisition and still delivers the frame.
+TEST(AravisFakeCamera, ControlLostDuringAnIdleGapIsRegainedByTheNextCapture) {
+  PatternSource source(65535);
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), source.callback(), &fake).ok());
+  std::unique_ptr<AravisCamera> camera;
+  ASSERT_TRUE(OpenAravisCamera(CameraOptions(*fake), &camera).ok());
+  CapturedFrame frame;
+  ASSERT_TRUE(camera->Capture(&frame).ok());
+  fake->DropControl();
+  // Longer than Aravis's 1 s heartbeat period, so the loss is seen before the next trigger.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+  const Status status = camera->Capture(&frame);
+  ASSERT_TRUE(status.ok()) << status.message();
+  ASSERT_EQ(source.count(), 2u);
+  EXPECT_TRUE(SameImage(frame.raw_dn, source.image(1)));
+  const auto stats = camera->statistics();
+  EXPECT_GE(Stat(stats, "control_regained"), 1);
+  EXPECT_GE(Stat(stats, "rearms"), 1);
+  // And the camera keeps working afterwards.
+  ASSERT_TRUE(camera->Capture(&frame).ok());
+  EXPECT_TRUE(SameImage(frame.raw_dn, source.image(2)));
+}
+
+TEST(AravisCamera, UnreachableAddressFailsFastNamingIt) {
+  AravisCameraOptions options;
+  options.address = "127.0.0.2";  // Loopback, nothing listening on UDP 3956.
+  options.connect_timeout_s = 0.3;
+  std::unique_ptr<AravisCamera> camera;
+  const auto start = std::chrono::steady_clock::now();
+  const Status status = OpenAravisCamera(options, &camera);
+  const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(camera, nullptr);
+  EXPECT_NE(status.message().find("aravis camera 127.0.0.2"), std::string::npos) << status.message();
+  EXPECT_NE(status.message().find("3956"), std::string::npos) << status.message();
+  EXPECT_LT(elapsed_s, 1.0);
+}
+
+// A host that swallows GVCP without answering (a firewall dropping it, a PC at the camera's
+// address): a UDP socket on 127.0.0.3:3956 that never replies.
+TEST(AravisCamera, SilentAddressTimesOutNamingIt) {
+  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in silent{};
+  silent.sin_family = AF_INET;
+  silent.sin_port = htons(3956);
+  ASSERT_EQ(::inet_pton(AF_INET, "127.0.0.3", &silent.sin_addr), 1);
+  ASSERT_EQ(::bind(fd, reinterpret_cast<const sockaddr*>(&silent), sizeof(silent)), 0) << std::strerror(errno);
+  AravisCameraOptions options;
+  options.address = "127.0.0.3";
+  options.connect_timeout_s = 0.3;
+  std::unique_ptr<AravisCamera> camera;
+  const auto start = std::chrono::steady_clock::now();
+  const Status status = OpenAravisCamera(options, &camera);
+  const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("aravis camera 127.0.0.3: no GigE Vision reply on UDP port 3956 within 0.3 s"),
+            std::string::npos)
+      << status.message();
+  EXPECT_GE(elapsed_s, 0.25);
+  EXPECT_LT(elapsed_s, 1.0);
+  // What arrived was a GVCP READREG command (key 0x42, command 0x0080), not a broadcast.
+  unsigned char packet[64];
+  const ssize_t got = ::recv(fd, packet, sizeof(packet), MSG_DONTWAIT);
+  ::close(fd);
+  ASSERT_GE(got, 12);
+  EXPECT_EQ(packet[0], 0x42);
+  EXPECT_EQ(packet[2], 0x00);
+  EXPECT_EQ(packet[3], 0x80);
+}
+
+TEST(AravisCamera, BadOptionsNameTheField) {
+  AravisCameraOptions options;
+  std::unique_ptr<AravisCamera> camera;
+  Status status = OpenAravisCamera(options, &camera);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("AravisCameraOptions::address"), std::string::npos) << status.message();
+  options.address = "127.0.0.1";
+  options.packet_size = 100;
+  status = OpenAravisCamera(options, &camera);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("AravisCameraOptions::packet_size = 100"), std::string::npos) << status.message();
+}
+
+}  // namespace
+}  // namespace thinslab

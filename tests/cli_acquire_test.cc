@@ -1,0 +1,248 @@
+// SPDX-License-Identifier: Apache-2.0
+// `thinslab acquire` through the real binary: a session killed with SIGKILL mid-scan and
+// resumed equals an uninterrupted run of the same seed, frame for frame and pixel for pixel;
+// bad input (unknown kind or option, absent or unreachable devices, a non-empty folder) exits
+// non-zero with one line naming the device, and leaves the session folder consistent.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/file.h"
+#include "core/session_io.h"
+#include "tests/testing/temp_dir.h"
+
+extern char** environ;
+
+namespace thinslab {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Binary() {
+  const char* bin_dir = std::getenv("THINSLAB_BINARY_DIR");
+  return std::string(bin_dir ? bin_dir : ".") + "/app/thinslab";
+}
+
+struct RunResult {
+  int exit_code = -1;
+  std::string output;
+};
+
+RunResult RunThinslab(const std::string& args) {
+  const std::string command = Binary() + " " + args + " 2>&1 </dev/null";
+  RunResult result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return result;
+  std::array<char, 4096> buffer;
+  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.output += buffer.data();
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+std::vector<std::string> Split(const std::string& args) {
+  std::istringstream in(args);
+  std::vector<std::string> out;
+  std::string word;
+  while (in >> word) out.push_back(word);
+  return out;
+}
+
+int CountFrames(const std::string& session) {
+  std::string text;
+  if (!ReadFileToString(session + "/session.json", &text).ok()) return 0;
+  const auto j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.contains("frames")) return 0;
+  return static_cast<int>(j["frames"].size());
+}
+
+// Lines of the output that start with "error: ". SDL's own stderr message about a missing
+// XDG_RUNTIME_DIR (it probes Wayland before X11) is not thinslab's and is not counted.
+int ErrorLines(const std::string& output) {
+  int n = 0;
+  std::istringstream in(output);
+  std::string line;
+  while (std::getline(in, line)) {
+    n += line.rfind("error: ", 0) == 0 && line.find("XDG_RUNTIME_DIR") == std::string::npos;
+  }
+  return n;
+}
+
+class CliAcquireTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir();
+    ASSERT_EQ(RunThinslab("sim pattern " + *dir_ / "small.exr" + " --width-px 24 --height-px 24").exit_code, 0);
+  }
+  static void TearDownTestSuite() { delete dir_; }
+
+  // A small simulated shadow-map acquisition; --sim-realtime makes every capture take its
+  // exposure time, as at a real rig, so there is time to kill it mid-scan.
+  static std::string ShadowArgs(const std::string& out) {
+    return "acquire shadow-maps --quiet --tau " + *dir_ / "small.exr" +
+           " --camera-width-px 160 --camera-height-px 120 --photons 4000 --frames 8 --dark-frames 2"
+           " --exposure-us 40000 --sim-realtime --seed 7 " + out;
+  }
+  static constexpr int kPlannedFrames = 2 + 2 * 8;
+
+  void ExpectDeviceError(const std::string& args, const std::vector<std::string>& named, const std::string& out) {
+    const RunResult r = RunThinslab(args);
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    EXPECT_EQ(ErrorLines(r.output), 1) << r.output;
+    for (const auto& piece : named) {
+      EXPECT_NE(r.output.find(piece), std::string::npos) << "'" << piece << "' not in: " << r.output;
+    }
+    EXPECT_FALSE(fs::exists(out)) << "a device that cannot be opened must leave no session folder";
+  }
+
+  static TempDir* dir_;
+};
+
+TempDir* CliAcquireTest::dir_ = nullptr;
+
+TEST_F(CliAcquireTest, KilledMidScanAndResumedEqualsAnUninterruptedRun) {
+  const std::string reference = *dir_ / "reference", resumed = *dir_ / "resumed";
+  const RunResult ref = RunThinslab(ShadowArgs(reference));
+  ASSERT_EQ(ref.exit_code, 0) << ref.output;
+
+  // The same acquisition as a child process, killed once the manifest shows 5 frames.
+  std::vector<std::string> args = Split(ShadowArgs(resumed));
+  args.insert(args.begin(), Binary());
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  ASSERT_EQ(posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), environ), 0);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  int frames = 0;
+  while ((frames = CountFrames(resumed)) < 5 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_EQ(kill(pid, SIGKILL), 0);
+  int wstatus = 0;
+  ASSERT_EQ(waitpid(pid, &wstatus, 0), pid);
+  ASSERT_TRUE(WIFSIGNALED(wstatus)) << "the acquisition finished before it could be killed";
+  const int frames_at_kill = CountFrames(resumed);
+  ASSERT_GE(frames_at_kill, 5);
+  ASSERT_LT(frames_at_kill, kPlannedFrames) << "killed too late to test a resume";
+  Session killed;
+  ASSERT_TRUE(ReadSession(resumed, &killed).ok());  // Consistent even when killed.
+  EXPECT_EQ(killed.acquisition.state, "running");
+  EXPECT_EQ(RunThinslab("info " + resumed).exit_code, 0);
+
+  // Without --resume the folder is refused; with it the scan completes.
+  const RunResult refused = RunThinslab(ShadowArgs(resumed));
+  EXPECT_NE(refused.exit_code, 0);
+  EXPECT_NE(refused.output.find("--resume"), std::string::npos) << refused.output;
+  const RunResult again = RunThinslab(ShadowArgs(resumed) + " --resume");
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+
+  Session a, b;
+  ASSERT_TRUE(ReadSession(reference, &a).ok());
+  ASSERT_TRUE(ReadSession(resumed, &b).ok());
+  ASSERT_EQ(a.frames.size(), static_cast<size_t>(kPlannedFrames));
+  ASSERT_EQ(b.frames.size(), a.frames.size()) << "frames lost or duplicated";
+  for (size_t i = 0; i < a.frames.size(); ++i) {
+    const FrameRecord& fa = a.frames[i];
+    const FrameRecord& fb = b.frames[i];
+    EXPECT_EQ(fa.index, fb.index);
+    EXPECT_EQ(fa.kind, fb.kind);
+    EXPECT_EQ(fa.sample_state, fb.sample_state);
+    EXPECT_EQ(fa.file, fb.file);
+    EXPECT_EQ(fa.exposure_time_us, fb.exposure_time_us);
+    EXPECT_EQ(fa.status, fb.status);
+    EXPECT_EQ(fa.light.projector_pattern, fb.light.projector_pattern);
+    Image ia, ib;
+    ASSERT_TRUE(LoadFrame(reference, a, fa, &ia).ok());
+    ASSERT_TRUE(LoadFrame(resumed, b, fb, &ib).ok());
+    EXPECT_TRUE(ia.data() == ib.data()) << "pixel data of frame " << fa.index << " differs";
+  }
+  EXPECT_EQ(b.acquisition.state, "complete");
+  std::vector<std::string> events;
+  for (const auto& e : b.acquisition.events) events.push_back(e.event);
+  EXPECT_EQ(events, (std::vector<std::string>{"started", "resumed", "completed"}));
+  EXPECT_NE(b.acquisition.events[1].message.find("killed"), std::string::npos) << b.acquisition.events[1].message;
+  EXPECT_EQ(b.acquisition.camera_captures, a.acquisition.camera_captures);
+  // No temporary left behind by the killed write.
+  for (const auto& entry : fs::recursive_directory_iterator(resumed)) {
+    EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << entry.path();
+  }
+  // A complete session resumes to nothing.
+  const RunResult nothing = RunThinslab(ShadowArgs(resumed) + " --resume");
+  EXPECT_EQ(nothing.exit_code, 0) << nothing.output;
+  EXPECT_NE(nothing.output.find("already complete"), std::string::npos) << nothing.output;
+  // Resuming with other options is refused, naming the plan.
+  const RunResult other = RunThinslab(ShadowArgs(resumed) + " --resume --frames 9");
+  EXPECT_NE(other.exit_code, 0);
+  EXPECT_NE(other.output.find("acquisition.plan"), std::string::npos) << other.output;
+}
+
+TEST_F(CliAcquireTest, UnknownKindAndOptionAreRefused) {
+  RunResult r = RunThinslab("acquire holograms " + *dir_ / "h");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("unknown session kind 'holograms'"), std::string::npos) << r.output;
+  r = RunThinslab("acquire shadow-maps --frobnicate 3 " + *dir_ / "h");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--frobnicate"), std::string::npos) << r.output;
+  r = RunThinslab("acquire shadow-maps --camera gopro:1 " + *dir_ / "h");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("gopro:1"), std::string::npos) << r.output;
+  // (A bool option takes the next argument as its value when it is one: --resume goes after OUTPUT.)
+  r = RunThinslab("acquire dot-scan " + *dir_ / "never_started" + " --resume");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("nothing to resume"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(*dir_ / "h"));
+}
+
+TEST_F(CliAcquireTest, AbsentUsbLaserIsNamed) {
+  ExpectDeviceError("acquire laser --laser hid-relay:dead:beef:1 " + *dir_ / "usb", {"dead:beef"}, *dir_ / "usb");
+  ExpectDeviceError("acquire laser --laser hid-relay:zz " + *dir_ / "usb", {"hid-relay:zz"}, *dir_ / "usb");
+}
+
+TEST_F(CliAcquireTest, DisplayIndexOutOfRangeIsNamed) {
+  // With or without an X server (no $DISPLAY), the error names the display index.
+  ExpectDeviceError("acquire dot-scan --display 99 " + *dir_ / "disp", {"display 99"}, *dir_ / "disp");
+  ExpectDeviceError("acquire dot-scan --display -4 " + *dir_ / "disp", {"--display"}, *dir_ / "disp");
+}
+
+TEST_F(CliAcquireTest, UnreachableOrAbsentCameraIsNamed) {
+  ExpectDeviceError("acquire shadow-maps --camera aravis:127.0.0.2 --camera-timeout-s 0.3 " + *dir_ / "cam",
+                    {"aravis:127.0.0.2"}, *dir_ / "cam");
+  ExpectDeviceError("acquire bracket --camera v4l2:/dev/video97 " + *dir_ / "cam", {"/dev/video97"}, *dir_ / "cam");
+}
+
+// A device that cannot be opened on --resume leaves the interrupted session exactly as it was.
+TEST_F(CliAcquireTest, DeviceFailureOnResumeLeavesTheSessionConsistent) {
+  const std::string session = *dir_ / "partial";
+  const std::string args = "acquire bracket --quiet --camera-width-px 64 --camera-height-px 48 --monitor-width-px 64"
+                           " --monitor-height-px 64 --exposure-steps 2 " + session;
+  ASSERT_EQ(RunThinslab(args).exit_code, 0);
+  std::string before;
+  ASSERT_TRUE(ReadFileToString(session + "/session.json", &before).ok());
+  const RunResult r = RunThinslab(args + " --resume --laser hid-relay:dead:beef:1");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("dead:beef"), std::string::npos) << r.output;
+  std::string after;
+  ASSERT_TRUE(ReadFileToString(session + "/session.json", &after).ok());
+  EXPECT_EQ(before, after);
+  const RunResult info = RunThinslab("info " + session);
+  EXPECT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find("Acquisition: complete"), std::string::npos) << info.output;
+}
+
+}  // namespace
+}  // namespace thinslab
