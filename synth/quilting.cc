@@ -1,0 +1,237 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "synth/quilting.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <vector>
+
+namespace thinslab {
+
+bool QuiltingOptions::Check(std::string* error) const {
+  std::ostringstream e;
+  if (patch_px < 4 || patch_px > 1024)
+    e << "QuiltingOptions::patch_px = " << patch_px << ". Violated constraint: in [4, 1024]";
+  else if (overlap_px < 1 || overlap_px > patch_px / 2)
+    e << "QuiltingOptions::overlap_px = " << overlap_px << ". Violated constraint: in [1, patch_px / 2]";
+  else if (!(tolerance >= 0 && tolerance <= 10))
+    e << "QuiltingOptions::tolerance = " << tolerance << ". Violated constraint: in [0, 10]";
+  else if (!(variance_tolerance >= 0 && variance_tolerance <= 10))
+    e << "QuiltingOptions::variance_tolerance = " << variance_tolerance << ". Violated constraint: in [0, 10]";
+  else if (max_candidates < 0)
+    e << "QuiltingOptions::max_candidates = " << max_candidates << ". Violated constraint: >= 0";
+  if (e.str().empty()) return true;
+  *error = e.str();
+  return false;
+}
+
+namespace {
+
+// Minimum-error boundary cut (Efros and Freeman 2001, Sec. 2.1): the path of least cumulative
+// squared difference through an overlap strip, one position per line, moving at most one
+// position sideways per line. `err` is lines x width, row-major; returns the cut position per
+// line. Pixels before the cut keep the old patch, pixels at or after it take the new one.
+std::vector<int> MinErrorCut(const std::vector<double>& err, int lines, int width) {
+  std::vector<double> cum(err.size());
+  std::copy(err.begin(), err.begin() + width, cum.begin());
+  for (int l = 1; l < lines; ++l) {
+    for (int x = 0; x < width; ++x) {
+      double best = cum[(l - 1) * width + x];
+      if (x > 0) best = std::min(best, cum[(l - 1) * width + x - 1]);
+      if (x + 1 < width) best = std::min(best, cum[(l - 1) * width + x + 1]);
+      cum[l * width + x] = err[l * width + x] + best;
+    }
+  }
+  std::vector<int> cut(lines);
+  int x = 0;
+  for (int k = 1; k < width; ++k) {
+    if (cum[(lines - 1) * width + k] < cum[(lines - 1) * width + x]) x = k;
+  }
+  cut[lines - 1] = x;
+  for (int l = lines - 1; l > 0; --l) {
+    // Ties go to the straight move, then left, then right: deterministic.
+    int next = x;
+    double best = cum[(l - 1) * width + x];
+    if (x > 0 && cum[(l - 1) * width + x - 1] < best) {
+      best = cum[(l - 1) * width + x - 1];
+      next = x - 1;
+    }
+    if (x + 1 < width && cum[(l - 1) * width + x + 1] < best) next = x + 1;
+    x = next;
+    cut[l - 1] = x;
+  }
+  return cut;
+}
+
+}  // namespace
+
+Status QuiltTexture(const Image& source, int width, int height, const QuiltingOptions& options, Image* output,
+                    Image* patch_index, QuiltingSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  if (width < 1 || height < 1 || width > 65536 || height > 65536) {
+    return Status::Error("quilting output size " + std::to_string(width) + "x" + std::to_string(height) +
+                         " is impossible: each side must be in [1, 65536] px");
+  }
+  const int P = options.patch_px, O = options.overlap_px, S = P - O;
+  const int sw = source.width(), sh = source.height();
+  if (source.num_channels() < 1 || sw < P || sh < P) {
+    return Status::Error("quilting source is " + std::to_string(sw) + "x" + std::to_string(sh) +
+                         " px, smaller than one " + std::to_string(P) + " px patch (QuiltingOptions::patch_px)");
+  }
+  std::vector<float> src(static_cast<size_t>(sw) * sh);
+  for (int y = 0; y < sh; ++y) {
+    for (int x = 0; x < sw; ++x) {
+      const float v = source.at(x, y, 0);
+      if (!std::isfinite(v)) {
+        return Status::Error("quilting source pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                             ") is not finite");
+      }
+      src[static_cast<size_t>(y) * sw + x] = v;
+    }
+  }
+  double mean = 0, var = 0;
+  for (float v : src) mean += v;
+  mean /= src.size();
+  for (float v : src) var += (v - mean) * (v - mean);
+  var /= src.size();
+  // Canvas of whole patches covering the output; cropped at the end.
+  const int nx = width <= P ? 1 : (width - O + S - 1) / S;
+  const int ny = height <= P ? 1 : (height - O + S - 1) / S;
+  const int cw = nx * S + O, ch = ny * S + O;
+  std::vector<float> canvas(static_cast<size_t>(cw) * ch, 0.0f);
+  std::vector<int32_t> ids(static_cast<size_t>(cw) * ch, -1);
+
+  const int cand_x = sw - P + 1, cand_y = sh - P + 1;
+  const int64_t num_positions = static_cast<int64_t>(cand_x) * cand_y;
+  const bool exhaustive = options.max_candidates == 0 || num_positions <= options.max_candidates;
+  const int64_t num_candidates = exhaustive ? num_positions : options.max_candidates;
+  std::mt19937_64 rng(options.seed);
+  std::vector<int64_t> candidates(num_candidates);
+  std::vector<double> errors(num_candidates);
+  std::vector<int64_t> qualifying;
+  std::vector<double> strip;
+  QuiltingSummary local;
+
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      const int px = i * S, py = j * S;
+      const bool left = i > 0, top = j > 0;
+      const int32_t id = j * nx + i;
+      if (exhaustive) {
+        for (int64_t k = 0; k < num_candidates; ++k) candidates[k] = k;
+      } else {
+        std::uniform_int_distribution<int64_t> pick(0, num_positions - 1);
+        for (int64_t k = 0; k < num_candidates; ++k) candidates[k] = pick(rng);
+      }
+      int64_t chosen = 0;
+      if (!left && !top) {
+        std::uniform_int_distribution<int64_t> pick(0, num_positions - 1);
+        chosen = pick(rng);
+      } else {
+        const int overlap_pixels = (left ? P * O : 0) + (top ? P * O : 0) - (left && top ? O * O : 0);
+        const double error_floor = options.variance_tolerance * var * overlap_pixels;
+        // Overlap SSD (Efros and Freeman 2001, Sec. 2.1). A candidate whose partial sum
+        // already exceeds (1 + tolerance) * best-so-far can never qualify: stop early.
+        double best = std::numeric_limits<double>::infinity();
+        for (int64_t k = 0; k < num_candidates; ++k) {
+          const int sx = static_cast<int>(candidates[k] % cand_x), sy = static_cast<int>(candidates[k] / cand_x);
+          const double bound = best * (1.0 + options.tolerance) + error_floor;
+          double e = 0;
+          for (int y = 0; y < P && e <= bound; ++y) {
+            const float* s_row = &src[static_cast<size_t>(sy + y) * sw + sx];
+            const float* c_row = &canvas[static_cast<size_t>(py + y) * cw + px];
+            // Left strip: columns [0, O) on every row; top strip: the rest of rows [0, O).
+            const int x_end = (top && y < O) ? P : (left ? O : 0);
+            double row = 0;
+            for (int x = 0; x < x_end; ++x) {
+              const double d = static_cast<double>(s_row[x]) - c_row[x];
+              row += d * d;
+            }
+            e += row;
+          }
+          errors[k] = e;
+          best = std::min(best, e);
+          ++local.candidates_evaluated;
+        }
+        const double threshold = best * (1.0 + options.tolerance) + error_floor;
+        qualifying.clear();
+        for (int64_t k = 0; k < num_candidates; ++k) {
+          if (errors[k] <= threshold) qualifying.push_back(candidates[k]);
+        }
+        std::uniform_int_distribution<size_t> pick(0, qualifying.size() - 1);
+        chosen = qualifying[pick(rng)];
+      }
+      const int sx = static_cast<int>(chosen % cand_x), sy = static_cast<int>(chosen / cand_x);
+      auto new_value = [&](int x, int y) { return src[static_cast<size_t>(sy + y) * sw + sx + x]; };
+      auto old_value = [&](int x, int y) { return canvas[static_cast<size_t>(py + y) * cw + px + x]; };
+      // Boundary cuts through the left strip (one column per row) and the top strip (one
+      // row per column).
+      std::vector<int> cut_left, cut_top;
+      if (left) {
+        strip.assign(static_cast<size_t>(P) * O, 0.0);
+        for (int y = 0; y < P; ++y) {
+          for (int x = 0; x < O; ++x) strip[y * O + x] = std::pow(new_value(x, y) - old_value(x, y), 2);
+        }
+        cut_left = MinErrorCut(strip, P, O);
+      }
+      if (top) {
+        strip.assign(static_cast<size_t>(P) * O, 0.0);
+        for (int x = 0; x < P; ++x) {
+          for (int y = 0; y < O; ++y) strip[x * O + y] = std::pow(new_value(x, y) - old_value(x, y), 2);
+        }
+        cut_top = MinErrorCut(strip, P, O);
+      }
+      for (int y = 0; y < P; ++y) {
+        for (int x = 0; x < P; ++x) {
+          const bool take_left = !left || x >= O || x >= cut_left[y];
+          const bool take_top = !top || y >= O || y >= cut_top[x];
+          if (!(take_left && take_top)) continue;
+          const size_t at = static_cast<size_t>(py + y) * cw + px + x;
+          canvas[at] = new_value(x, y);
+          ids[at] = id;
+        }
+      }
+      ++local.patches;
+    }
+  }
+
+  *output = Image(width, height, {"tau"});
+  if (options.match_histogram) {
+    // Exact histogram specification over the output window (ties share one value).
+    std::vector<float> sorted_src = src;
+    std::sort(sorted_src.begin(), sorted_src.end());
+    std::vector<std::pair<float, int64_t>> order;
+    order.reserve(static_cast<size_t>(width) * height);
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x)
+        order.emplace_back(canvas[static_cast<size_t>(y) * cw + x], static_cast<int64_t>(y) * cw + x);
+    }
+    std::sort(order.begin(), order.end());
+    const double n_out = static_cast<double>(order.size()), n_src = static_cast<double>(sorted_src.size());
+    for (size_t a = 0; a < order.size();) {
+      size_t b = a;
+      while (b < order.size() && order[b].first == order[a].first) ++b;
+      const double mid_rank = 0.5 * (static_cast<double>(a) + static_cast<double>(b - 1));
+      const size_t k = n_out > 1 ? static_cast<size_t>(std::llround(mid_rank * (n_src - 1) / (n_out - 1))) : 0;
+      for (size_t i = a; i < b; ++i) canvas[order[i].second] = sorted_src[std::min(k, sorted_src.size() - 1)];
+      a = b;
+    }
+  }
+  if (patch_index) *patch_index = Image(width, height, {"patch_index"});
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      output->at(x, y) = canvas[static_cast<size_t>(y) * cw + x];
+      if (patch_index) patch_index->at(x, y) = static_cast<float>(ids[static_cast<size_t>(y) * cw + x]);
+    }
+  }
+  local.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (summary) *summary = local;
+  return Status::Ok();
+}
+
+}  // namespace thinslab

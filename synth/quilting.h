@@ -1,0 +1,60 @@
+// SPDX-License-Identifier: Apache-2.0
+// Image quilting (Efros and Freeman 2001, "Image Quilting for Texture Synthesis and
+// Transfer", SIGGRAPH), which Gu et al. 2007 (Sec. 5.3) use to synthesize dust layers from a
+// measured dust tau map. Square patches are laid in raster order with an overlap; each patch
+// is chosen among source positions whose sum of squared differences (SSD) over the overlap
+// is within a tolerance of the best, and is joined to its neighbours along the minimum-error
+// boundary cut, found by dynamic programming over the squared-difference surface.
+#pragma once
+
+#include <cstdint>
+
+#include "core/image.h"
+#include "core/status.h"
+
+namespace thinslab {
+
+struct QuiltingOptions {
+  int patch_px = 32;    // Patch side [px]; Efros-Freeman: larger than the texture's features.
+  int overlap_px = 10;  // Overlap between neighbouring patches [px], in [1, patch_px / 2].
+  // A candidate qualifies when its overlap SSD <= (1 + tolerance) * best SSD (Efros-Freeman
+  // use 0.1); one qualifying candidate is drawn uniformly.
+  double tolerance = 0.1;
+  // Not in Efros-Freeman: an absolute floor on the qualifying error, this share of the source
+  // variance per overlap pixel. Without it a sparse texture (dust on clean glass) degenerates:
+  // the best overlap error is 0 wherever the overlap is clean, only clean-bordered patches
+  // qualify, and the output loses specks (measured: -20% mean tau). [0, 10].
+  double variance_tolerance = 0.05;
+  // Candidate source positions examined per patch: all of them when the source has at most
+  // this many, else this many drawn uniformly (seeded). 0 = always all. Bounds the cost of
+  // large outputs (bench/synth_bench.cc).
+  int max_candidates = 1024;
+  // Not in Efros-Freeman: afterwards, give the output exactly the source's value histogram
+  // (exact histogram specification: each group of equal output values takes the source
+  // quantile at the group's mid-rank, so every output value is a source value and the spatial
+  // order is kept). Patch selection prefers clean overlaps in a sparse texture and quilting
+  // alone loses 10-20% of the dust (measured, docs/models/contamination_synthesis.md); the
+  // amount of dust (mean tau) is the physical quantity to keep.
+  bool match_histogram = true;
+  uint64_t seed = 1;
+
+  bool Check(std::string* error) const;
+};
+
+struct QuiltingSummary {
+  int patches = 0;
+  int64_t candidates_evaluated = 0;
+  double total_s = 0;
+};
+
+// Quilts channel 0 of `source` into a width x height single-channel image named "tau".
+// If `patch_index` is non-null it receives a same-size image "patch_index" holding, per
+// output pixel, the raster index of the patch it came from (exact in float below 2^24);
+// neighbouring pixels with different indices straddle a boundary cut, which is how tests
+// measure seam visibility.
+// Errors: invalid options, a source smaller than one patch or with non-finite values, an
+// output size outside [1, 65536] per side. Same inputs and seed give bit-identical output.
+Status QuiltTexture(const Image& source, int width, int height, const QuiltingOptions& options, Image* output,
+                    Image* patch_index = nullptr, QuiltingSummary* summary = nullptr);
+
+}  // namespace thinslab
