@@ -10,6 +10,10 @@
 namespace thinslab {
 namespace {
 
+bool IsBooleanWord(const std::string& s) {
+  return s == "true" || s == "1" || s == "yes" || s == "false" || s == "0" || s == "no";
+}
+
 bool ParseDouble(const std::string& s, double* out) {
   if (s.empty()) return false;
   char* end = nullptr;
@@ -120,7 +124,8 @@ Status OptionParser::Parse(int argc, char** argv) {
         return Status::Error("thinslab " + command_ + ": unknown option --" + name + " (see --help)");
       }
       if (!has_value) {
-        if (option->kind == "true/false" && (i + 1 >= argc || std::string(argv[i + 1]).rfind("--", 0) == 0)) {
+        // A flag takes the next argument only when it is a boolean word, so `--resume OUT` works.
+        if (option->kind == "true/false" && (i + 1 >= argc || !IsBooleanWord(argv[i + 1]))) {
           value = "true";
         } else if (i + 1 >= argc) {
           return Status::Error("thinslab " + command_ + ": option --" + name + " needs a value (" + option->kind + ")");
