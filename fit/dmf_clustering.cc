@@ -1,0 +1,218 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "fit/dmf_clustering.h"
+
+#include <glog/logging.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <sstream>
+
+namespace thinslab {
+namespace {
+
+using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Squared distances between the rows of a (n x d) and the rows of b (k x d) by
+// |a|^2 + |b|^2 - 2 a b^T, blockwise so the n x k matrix never exists in full.
+template <typename Visit>
+void ForEachDistanceRow(const RowMatrix& a, const RowMatrix& b, const Visit& visit) {
+  const Eigen::VectorXf b_norm = b.rowwise().squaredNorm();
+  constexpr int kBlock = 2048;
+  for (int start = 0; start < a.rows(); start += kBlock) {
+    const int rows = std::min<int>(kBlock, static_cast<int>(a.rows()) - start);
+    const auto block = a.middleRows(start, rows);
+    RowMatrix d = -2.0f * (block * b.transpose());
+    d.colwise() += block.rowwise().squaredNorm();
+    d.rowwise() += b_norm.transpose();
+    for (int r = 0; r < rows; ++r) visit(start + r, d.row(r));
+  }
+}
+
+// Eqs. 21-22 with w >= 0: least squares of G w = y subject to sum w = 1, by an active set that
+// drops the most negative weight until all are non-negative.
+Eigen::VectorXd AffineWeights(const Eigen::MatrixXd& g, const Eigen::VectorXd& y, double* residual) {
+  const int k = static_cast<int>(g.cols());
+  std::vector<int> active(k);
+  std::iota(active.begin(), active.end(), 0);
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(k);
+  while (!active.empty()) {
+    const int m = static_cast<int>(active.size());
+    Eigen::MatrixXd kkt = Eigen::MatrixXd::Zero(m + 1, m + 1);
+    Eigen::VectorXd rhs(m + 1);
+    for (int a = 0; a < m; ++a) {
+      for (int b = 0; b < m; ++b) kkt(a, b) = g.col(active[a]).dot(g.col(active[b]));
+      kkt(a, a) += 1e-9;  // Coincident representatives.
+      kkt(a, m) = kkt(m, a) = 1;
+      rhs[a] = g.col(active[a]).dot(y);
+    }
+    rhs[m] = 1;
+    const Eigen::VectorXd x = kkt.fullPivLu().solve(rhs);
+    int most_negative = -1;
+    for (int a = 0; a < m; ++a) {
+      if (x[a] < 0 && (most_negative < 0 || x[a] < x[most_negative])) most_negative = a;
+    }
+    if (most_negative < 0) {
+      w.setZero();
+      for (int a = 0; a < m; ++a) w[active[a]] = x[a];
+      break;
+    }
+    active.erase(active.begin() + most_negative);
+  }
+  *residual = (g * w - y).norm();
+  return w;
+}
+
+}  // namespace
+
+bool DmfClusteringOptions::Check(std::string* error) const {
+  std::ostringstream e;
+  if (!(fraction > 0 && fraction <= 1)) e << "cluster fraction must be in (0, 1], got " << fraction;
+  else if (min_representatives < 1) e << "min_representatives must be >= 1, got " << min_representatives;
+  else if (pca_dims < 1) e << "pca_dims must be >= 1, got " << pca_dims;
+  else if (num_neighbors < 1 || num_neighbors > 16) e << "num_neighbors must be in [1, 16], got " << num_neighbors;
+  else if (subsample < 100) e << "subsample must be >= 100, got " << subsample;
+  *error = e.str();
+  return error->empty();
+}
+
+DmfClustering ClusterSlices(const Eigen::MatrixXf& shapes, const std::vector<uint8_t>& valid,
+                            const DmfClusteringOptions& options) {
+  CHECK_EQ(static_cast<size_t>(shapes.rows()), valid.size());
+  DmfClustering out;
+  out.num_neighbors = options.num_neighbors;
+  const int num_points = static_cast<int>(shapes.rows());
+  out.neighbors.assign(static_cast<size_t>(num_points) * options.num_neighbors, -1);
+  out.weights.assign(out.neighbors.size(), 0.0);
+  out.cluster.assign(num_points, -1);
+  std::vector<int> points;
+  for (int p = 0; p < num_points; ++p) {
+    if (valid[p]) points.push_back(p);
+  }
+  if (points.empty()) return out;
+  std::mt19937_64 rng(options.seed);
+
+  // Principal components of the shapes, from a subsample.
+  std::vector<int> sample = points;
+  std::shuffle(sample.begin(), sample.end(), rng);
+  sample.resize(std::min<size_t>(sample.size(), options.subsample));
+  const int dims = static_cast<int>(shapes.cols());
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(dims);
+  for (int p : sample) mean += shapes.row(p).transpose().cast<double>();
+  mean /= sample.size();
+  Eigen::MatrixXd centred(sample.size(), dims);
+  for (size_t s = 0; s < sample.size(); ++s) centred.row(s) = shapes.row(sample[s]).cast<double>() - mean.transpose();
+  const Eigen::MatrixXd covariance = centred.transpose() * centred / std::max<size_t>(1, sample.size() - 1);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(covariance);
+  const int pca = std::min(options.pca_dims, dims);
+  const Eigen::MatrixXf basis = eig.eigenvectors().rightCols(pca).cast<float>();
+  const double total_variance = std::max(1e-300, eig.eigenvalues().sum());
+  out.pca_explained = eig.eigenvalues().tail(pca).sum() / total_variance;
+  const Eigen::RowVectorXf mean_f = mean.transpose().cast<float>();
+  RowMatrix projected(points.size(), pca);
+  for (size_t k = 0; k < points.size(); ++k) projected.row(k) = (shapes.row(points[k]) - mean_f) * basis;
+
+  const int num_clusters = std::min<int>(
+      static_cast<int>(points.size()),
+      std::max(options.min_representatives, static_cast<int>(std::lround(options.fraction * points.size()))));
+
+  // k-means++ seeding and Lloyd iterations on the subsample (in projected coordinates).
+  std::vector<int> sample_rows(points.size());
+  std::iota(sample_rows.begin(), sample_rows.end(), 0);
+  std::shuffle(sample_rows.begin(), sample_rows.end(), rng);
+  sample_rows.resize(std::max<size_t>(std::min<size_t>(sample_rows.size(), options.subsample),
+                                      std::min<size_t>(sample_rows.size(), num_clusters)));
+  RowMatrix sub(sample_rows.size(), pca);
+  for (size_t s = 0; s < sample_rows.size(); ++s) sub.row(s) = projected.row(sample_rows[s]);
+  RowMatrix centres(num_clusters, pca);
+  {
+    std::vector<double> d2(sub.rows(), std::numeric_limits<double>::max());
+    std::uniform_int_distribution<int> first(0, static_cast<int>(sub.rows()) - 1);
+    centres.row(0) = sub.row(first(rng));
+    for (int c = 1; c < num_clusters; ++c) {
+      double total = 0;
+      for (int s = 0; s < sub.rows(); ++s) {
+        d2[s] = std::min<double>(d2[s], (sub.row(s) - centres.row(c - 1)).squaredNorm());
+        total += d2[s];
+      }
+      std::uniform_real_distribution<double> u(0, total);
+      double target = u(rng);
+      int pick = 0;
+      while (pick < sub.rows() - 1 && target > d2[pick]) target -= d2[pick++];
+      centres.row(c) = sub.row(pick);
+    }
+  }
+  std::vector<int> label(sub.rows(), 0);
+  for (int it = 0; it < options.kmeans_iterations; ++it) {
+    ForEachDistanceRow(sub, centres, [&](int s, const auto& d) { d.minCoeff(&label[s]); });
+    RowMatrix sum = RowMatrix::Zero(num_clusters, pca);
+    std::vector<int> count(num_clusters, 0);
+    for (int s = 0; s < sub.rows(); ++s) {
+      sum.row(label[s]) += sub.row(s);
+      ++count[label[s]];
+    }
+    for (int c = 0; c < num_clusters; ++c) {
+      if (count[c] > 0) centres.row(c) = sum.row(c) / count[c];
+    }
+  }
+
+  // Assign every point; the member nearest its centre represents the cluster.
+  std::vector<int> nearest_point(num_clusters, -1);
+  std::vector<float> nearest_d(num_clusters, std::numeric_limits<float>::max());
+  ForEachDistanceRow(projected, centres, [&](int k, const auto& d) {
+    int c;
+    const float dist = d.minCoeff(&c);
+    out.cluster[points[k]] = c;
+    if (dist < nearest_d[c]) {
+      nearest_d[c] = dist;
+      nearest_point[c] = k;
+    }
+  });
+  std::vector<int> rep_rows;
+  for (int c = 0; c < num_clusters; ++c) {
+    if (nearest_point[c] >= 0) rep_rows.push_back(nearest_point[c]);
+  }
+  RowMatrix reps(rep_rows.size(), pca);
+  for (size_t r = 0; r < rep_rows.size(); ++r) {
+    reps.row(r) = projected.row(rep_rows[r]);
+    out.representatives.push_back(points[rep_rows[r]]);
+  }
+  std::vector<int> rep_of_row(points.size(), -1);
+  for (size_t r = 0; r < rep_rows.size(); ++r) rep_of_row[rep_rows[r]] = static_cast<int>(r);
+
+  // Eqs. 20-22: nearest representatives and their affine, non-negative weights.
+  const int k_nn = std::min<int>(options.num_neighbors, static_cast<int>(rep_rows.size()));
+  double residual_sum = 0;
+  int residual_count = 0;
+  std::vector<int> order(rep_rows.size());
+  ForEachDistanceRow(projected, reps, [&](int k, const auto& d) {
+    const size_t base = static_cast<size_t>(points[k]) * options.num_neighbors;
+    if (rep_of_row[k] >= 0) {
+      out.neighbors[base] = rep_of_row[k];
+      out.weights[base] = 1;
+      return;
+    }
+    std::iota(order.begin(), order.end(), 0);
+    std::partial_sort(order.begin(), order.begin() + k_nn, order.end(), [&](int a, int b) { return d[a] < d[b]; });
+    Eigen::MatrixXd g(pca, k_nn);
+    for (int j = 0; j < k_nn; ++j) g.col(j) = reps.row(order[j]).transpose().cast<double>();
+    const Eigen::VectorXd y = projected.row(k).transpose().cast<double>();
+    double residual = 0;
+    const Eigen::VectorXd w = AffineWeights(g, y, &residual);
+    for (int j = 0; j < k_nn; ++j) {
+      out.neighbors[base + j] = order[j];
+      out.weights[base + j] = w[j];
+    }
+    const double scale = (shapes.row(points[k]).cast<double>()).norm();
+    if (scale > 0) {
+      residual_sum += residual / scale;
+      ++residual_count;
+    }
+  });
+  out.mean_weight_residual = residual_count > 0 ? residual_sum / residual_count : 0;
+  return out;
+}
+
+}  // namespace thinslab

@@ -1,0 +1,56 @@
+// SPDX-License-Identifier: Apache-2.0
+// k-means acceleration of the dual-microfacet fit (Dai et al. 2009, Sec. 4.3): the BTDF slices
+// of all points are clustered, only one representative point per cluster is fitted, and every
+// other point's model is the combination of its nearby representatives' models with the
+// weights that best reproduce its own slice (Eqs. 20-22).
+//
+// Choices the paper leaves open (docs/models/dual_microfacet_fit.md):
+//  - Slices are compared by shape: each point's training measurements (R - rho_d, clipped at 0)
+//    divided by their sum, so that k_s and rho_d stay per point.
+//  - Distances and Eq. 21 are evaluated in the span of the leading principal components of those
+//    shapes (Eq. 21 is linear and Eq. 22 makes it affine, so it holds in any affine projection;
+//    the truncation error is reported). This makes the clustering cost independent of the
+//    number of dots.
+//  - Cluster centres are found by k-means++ and Lloyd iterations on a random subsample, then
+//    every point is assigned; the representative of a cluster is its member nearest the centre
+//    (a real point, fitted with its own data).
+//  - N_i: the num_neighbors representatives nearest to point i; weights solve Eqs. 21-22 in the
+//    least-squares sense with w >= 0 (active set), so interpolated NDFs stay non-negative.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace thinslab {
+
+struct DmfClusteringOptions {
+  double fraction = 0.01;      // Representatives per point (Dai: 1 %).
+  int min_representatives = 4;
+  int pca_dims = 24;
+  int kmeans_iterations = 15;
+  int subsample = 20000;       // Points used to place the centres.
+  int num_neighbors = 4;       // |N_i|.
+  uint64_t seed = 1;
+  bool Check(std::string* error) const;
+};
+
+struct DmfClustering {
+  std::vector<int> representatives;  // Point index of each representative.
+  int num_neighbors = 0;
+  // For point p: neighbors[p * num_neighbors + k] is an index into `representatives` (or -1)
+  // and weights[...] its Eq. 20 weight; representatives have themselves with weight 1.
+  std::vector<int> neighbors;
+  std::vector<double> weights;
+  std::vector<int> cluster;         // k-means cluster of each point (-1 for excluded points).
+  double pca_explained = 0;         // Fraction of the shape variance the projection keeps.
+  double mean_weight_residual = 0;  // Mean relative residual of Eq. 21 in the projection.
+};
+
+// `shapes`: one row per point (normalised training slice, see above); `valid[p]` false excludes
+// a point (it gets no neighbours).
+DmfClustering ClusterSlices(const Eigen::MatrixXf& shapes, const std::vector<uint8_t>& valid,
+                            const DmfClusteringOptions& options);
+
+}  // namespace thinslab

@@ -1,0 +1,290 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "fit/dmf_map_fit.h"
+
+#include <glog/logging.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <thread>
+
+#include "core/math.h"
+
+namespace thinslab {
+namespace {
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+template <typename Body>
+void ParallelFor(int n, int num_threads, const Body& body) {
+  std::atomic<int> next{0};
+  auto worker = [&]() {
+    for (int k = next++; k < n; k = next++) body(k);
+  };
+  std::vector<std::thread> threads;
+  for (int t = 1; t < std::max(1, num_threads); ++t) threads.emplace_back(worker);
+  worker();
+  for (auto& t : threads) t.join();
+}
+
+// ln k_s of point `slice` for a model shape (alpha, D, smith) borrowed from `shape`: the mean
+// log ratio of measurement to unit-scale prediction over the usable training dots.
+double FitLogScale(const DmfSlice& slice, const DmfPointFit& shape, const DmfNdfGrid& grid,
+                   const DmfPointFitOptions& options, int* used) {
+  DmfPointFit unit = shape;
+  unit.k_s = 1;
+  unit.rho_d = 0;
+  double peak = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (slice.train[q]) peak = std::max(peak, slice.value[q] - slice.rho_d);
+  }
+  double sum = 0;
+  int n = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (!slice.train[q]) continue;
+    const double v = slice.value[q] - slice.rho_d;
+    const double sigma = slice.sigma.empty() ? 0 : slice.sigma[q];
+    if (!(v > options.noise_sigmas * sigma) || !(v > options.min_relative_value * peak)) continue;
+    const double pred = PredictDualMicrofacet(unit, grid, options.eta, slice.i[q], slice.o);
+    if (!(pred > 0)) continue;
+    sum += std::log(v / pred);
+    ++n;
+  }
+  *used = n;
+  return n > 0 ? sum / n : 0;
+}
+
+double LogRmsResidual(const DmfSlice& slice, const DmfPointFit& fit, const DmfNdfGrid& grid,
+                      const DmfPointFitOptions& options) {
+  double peak = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (slice.train[q]) peak = std::max(peak, slice.value[q] - slice.rho_d);
+  }
+  double sum = 0;
+  int n = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    const double v = slice.value[q] - slice.rho_d;
+    if (!slice.train[q] || !(v > options.min_relative_value * peak)) continue;
+    const double pred = PredictDualMicrofacet(fit, grid, options.eta, slice.i[q], slice.o) - fit.rho_d;
+    if (!(pred > 0)) continue;
+    sum += Sqr(std::log(v / pred));
+    ++n;
+  }
+  return n > 0 ? std::sqrt(sum / n) : 0;
+}
+
+}  // namespace
+
+Eigen::Vector3d DmfSliceSet::PointPosition(int p) const {
+  const int col = p % width, row = p / width;
+  return Eigen::Vector3d(grid_min_m.x() + (col + 0.5) * pitch_m, grid_min_m.y() + (row + 0.5) * pitch_m, 0);
+}
+
+DmfSlice DmfSliceSet::Slice(int p) const {
+  const Eigen::Vector3d x = PointPosition(p);
+  DmfSlice slice;
+  slice.o = SampleToOptical((camera_centre - x).normalized());
+  const int nd = num_dots();
+  slice.i.resize(nd);
+  slice.value.resize(nd);
+  slice.solid_angle.resize(nd);
+  if (!sigma.empty()) slice.sigma.resize(nd);
+  slice.train = train;
+  const size_t base = static_cast<size_t>(p) * nd;
+  for (int q = 0; q < nd; ++q) {
+    const Eigen::Vector3d to_dot = dot_positions[q] - x;
+    const double r = to_dot.norm();
+    slice.i[q] = SampleToOptical(to_dot / r);
+    slice.value[q] = value[base + q];
+    if (!sigma.empty()) slice.sigma[q] = sigma[base + q];
+    slice.solid_angle[q] = dot_cell_area_m2 * (std::abs(to_dot.z()) / r) / (r * r);
+  }
+  slice.rho_d = EstimateDiffuse(slice, dots_nx, dots_ny);
+  return slice;
+}
+
+Status DmfSliceSet::Check() const {
+  if (width <= 0 || height <= 0) return Status::Error("slice set: empty sample grid");
+  if (!(pitch_m > 0)) return Status::Error("slice set: sample pitch must be > 0");
+  if (dots_nx * dots_ny != num_dots()) return Status::Error("slice set: dot grid size does not match the dot count");
+  if (num_dots() < 16) {
+    return Status::Error("slice set: " + std::to_string(num_dots()) + " dots; the fit needs at least 4 x 4");
+  }
+  if (value.size() != static_cast<size_t>(num_points()) * num_dots()) return Status::Error("slice set: value size");
+  if (!sigma.empty() && sigma.size() != value.size()) return Status::Error("slice set: sigma size");
+  if (static_cast<int>(train.size()) != num_dots()) return Status::Error("slice set: train mask size");
+  if (static_cast<int>(point_status.size()) != num_points()) return Status::Error("slice set: point status size");
+  for (const auto& p : dot_positions) {
+    if (!(p.z() < 0)) return Status::Error("slice set: dot positions must lie behind the sample (z < 0)");
+  }
+  if (!(camera_centre.z() > 0)) return Status::Error("slice set: camera must be on the +z side of the sample");
+  return Status::Ok();
+}
+
+std::vector<uint8_t> InterleavedTrainMask(int nx, int ny, bool hold_out) {
+  std::vector<uint8_t> train(static_cast<size_t>(nx) * ny, 1);
+  if (!hold_out) return train;
+  for (int y = 0; y < ny; ++y) {
+    for (int x = 0; x < nx; ++x) train[y * nx + x] = (x + y) % 2 == 0;
+  }
+  return train;
+}
+
+bool DmfMapFitOptions::Check(std::string* error) const {
+  if (!point.Check(error)) return false;
+  if (cluster && !clustering.Check(error)) return false;
+  if (num_threads < 1) {
+    *error = "num_threads must be >= 1";
+    return false;
+  }
+  return true;
+}
+
+Image DmfMaps::ToImage() const {
+  Image image(width, height, {"alpha", "smith_alpha", "k_s", "rho_d", "residual", "status"});
+  for (int p = 0; p < width * height; ++p) {
+    const DmfPointFit& f = fits[p];
+    const int x = p % width, y = p / width;
+    image.at(x, y, 0) = static_cast<float>(f.alpha);
+    image.at(x, y, 1) = static_cast<float>(f.smith_alpha);
+    image.at(x, y, 2) = static_cast<float>(f.k_s);
+    image.at(x, y, 3) = static_cast<float>(f.rho_d);
+    image.at(x, y, 4) = static_cast<float>(f.log_rms_residual);
+    image.at(x, y, 5) = static_cast<float>(static_cast<int>(f.status));
+  }
+  return image;
+}
+
+Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& options, DmfMaps* maps) {
+  std::string error;
+  if (!options.Check(&error)) return Status::Error("dmf fit options: " + error);
+  THINSLAB_RETURN_IF_ERROR(slices.Check());
+  const auto start = std::chrono::steady_clock::now();
+  const DmfNdfGrid grid(options.point.ndf_resolution);
+  const int np = slices.num_points(), nd = slices.num_dots();
+  maps->width = slices.width;
+  maps->height = slices.height;
+  maps->ndf_resolution = grid.n();
+  maps->eta = options.point.eta;
+  maps->fits.assign(np, DmfPointFit());
+  maps->num_fitted = 0;
+  maps->clustering = DmfClustering();
+
+  // Diffuse separation (Eq. 14) and the slice shapes the clustering compares.
+  auto t = std::chrono::steady_clock::now();
+  std::vector<double> rho_d(np, 0);
+  std::vector<uint8_t> fit_me(np, 0);
+  Eigen::MatrixXf shapes;
+  std::vector<int> train_dots;
+  for (int q = 0; q < nd; ++q) {
+    if (slices.train[q]) train_dots.push_back(q);
+  }
+  if (options.cluster) shapes.setZero(np, train_dots.size());
+  ParallelFor(np, options.num_threads, [&](int p) {
+    maps->fits[p].status = static_cast<DmfStatus>(slices.point_status[p]);
+    if (slices.point_status[p] != static_cast<uint8_t>(DmfStatus::kOk)) return;
+    const DmfSlice slice = slices.Slice(p);
+    rho_d[p] = slice.rho_d;
+    maps->fits[p].rho_d = slice.rho_d;
+    double sum = 0;
+    for (int q : train_dots) sum += std::max(0.0, slice.value[q] - slice.rho_d);
+    if (!(sum > 0)) {
+      maps->fits[p].status = DmfStatus::kNoLobe;
+      return;
+    }
+    fit_me[p] = 1;
+    if (options.cluster) {
+      for (size_t k = 0; k < train_dots.size(); ++k) {
+        shapes(p, k) = static_cast<float>(std::max(0.0, slice.value[train_dots[k]] - slice.rho_d) / sum);
+      }
+    }
+  });
+  maps->timings.diffuse_s = Seconds(t);
+
+  // Which points are fitted directly.
+  std::vector<int> direct;
+  t = std::chrono::steady_clock::now();
+  if (options.cluster) {
+    maps->clustering = ClusterSlices(shapes, fit_me, options.clustering);
+    direct = maps->clustering.representatives;
+  } else {
+    for (int p = 0; p < np; ++p) {
+      if (fit_me[p]) direct.push_back(p);
+    }
+  }
+  maps->timings.clustering_s = Seconds(t);
+
+  t = std::chrono::steady_clock::now();
+  ParallelFor(static_cast<int>(direct.size()), options.num_threads, [&](int k) {
+    const int p = direct[k];
+    maps->fits[p] = FitDualMicrofacetPoint(slices.Slice(p), grid, options.point);
+  });
+  maps->num_fitted = static_cast<int>(direct.size());
+  maps->timings.representative_fit_s = Seconds(t);
+
+  // Eq. 20: <alpha, D>_i = sum_j w_ij <alpha, D>_j (D linear, normalised), then k_s per point.
+  t = std::chrono::steady_clock::now();
+  if (options.cluster) {
+    const DmfClustering& c = maps->clustering;
+    std::vector<uint8_t> is_rep(np, 0);
+    for (int p : c.representatives) is_rep[p] = 1;
+    ParallelFor(np, options.num_threads, [&](int p) {
+      if (!fit_me[p] || is_rep[p]) return;
+      DmfPointFit f;
+      f.rho_d = rho_d[p];
+      f.alpha = 0;
+      f.smith_alpha = 0;
+      std::vector<double> d(grid.num_cells(), 0.0);
+      double weight_sum = 0;
+      for (int k = 0; k < c.num_neighbors; ++k) {
+        const int j = c.neighbors[static_cast<size_t>(p) * c.num_neighbors + k];
+        const double w = c.weights[static_cast<size_t>(p) * c.num_neighbors + k];
+        if (j < 0 || w <= 0) continue;
+        const DmfPointFit& rep = maps->fits[c.representatives[j]];
+        if (rep.log_ndf.empty() || !(rep.k_s > 0)) continue;
+        f.alpha += w * rep.alpha;
+        f.smith_alpha += w * rep.smith_alpha;
+        for (int cell = 0; cell < grid.num_cells(); ++cell) d[cell] += w * std::exp(rep.log_ndf[cell]);
+        weight_sum += w;
+      }
+      if (!(weight_sum > 0)) {
+        f.status = DmfStatus::kNoLobe;
+        f.alpha = 0.5;
+        f.smith_alpha = options.point.initial_smith_alpha;
+        maps->fits[p] = f;
+        return;
+      }
+      f.alpha /= weight_sum;
+      f.smith_alpha /= weight_sum;
+      f.log_ndf.resize(grid.num_cells());
+      for (int cell = 0; cell < grid.num_cells(); ++cell) {
+        f.log_ndf[cell] = std::log(std::max(d[cell] / weight_sum, 1e-6));
+      }
+      const DmfSlice slice = slices.Slice(p);
+      int used = 0;
+      f.k_s = std::exp(FitLogScale(slice, f, grid, options.point, &used));
+      f.num_used = used;
+      f.log_rms_residual = LogRmsResidual(slice, f, grid, options.point);
+      f.status = used > 0 ? DmfStatus::kInterpolated : DmfStatus::kNoLobe;
+      maps->fits[p] = f;
+    });
+  }
+  maps->timings.interpolation_s = Seconds(t);
+  maps->timings.total_s = Seconds(start);
+  return Status::Ok();
+}
+
+double DmfHeldOutError(const DmfSliceSet& slices, const DmfMaps& maps, int p, double lobe_fraction) {
+  const DmfPointFit& fit = maps.fits[p];
+  if (fit.log_ndf.empty()) return -1;
+  const DmfNdfGrid grid(maps.ndf_resolution);
+  const DmfSlice slice = slices.Slice(p);
+  return HeldOutRelativeRms(slice, lobe_fraction, [&](const Eigen::Vector3d& i, const Eigen::Vector3d& o) {
+    return PredictDualMicrofacet(fit, grid, maps.eta, i, o);
+  });
+}
+
+}  // namespace thinslab

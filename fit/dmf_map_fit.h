@@ -1,0 +1,81 @@
+// SPDX-License-Identifier: Apache-2.0
+// Spatially varying dual-microfacet fit (Dai et al. 2009, Sec. 4): every point of the sample
+// grid has a BTDF slice (Eq. 12 values for the dots of the scan); the map fit separates the
+// diffuse term (Eq. 14), fits the dual-microfacet model per point (fit/dmf_point_fit.h), either
+// for every point or for k-means representatives with Eq. 20-22 interpolation for the rest
+// (fit/dmf_clustering.h), and gathers maps and per-stage timings.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/image.h"
+#include "core/status.h"
+#include "fit/dmf_clustering.h"
+#include "fit/dmf_point_fit.h"
+
+namespace thinslab {
+
+// Eq. 12 measurements of a whole sample grid, in the sample frame of docs/conventions.md
+// (monitor at z = -d, camera on +z). Point p = (col, row) sits at
+// grid_min_m + ((col + 0.5), (row + 0.5)) * pitch_m on z = 0.
+struct DmfSliceSet {
+  int width = 0, height = 0;
+  Eigen::Vector2d grid_min_m = Eigen::Vector2d::Zero();
+  double pitch_m = 0;
+  int dots_nx = 0, dots_ny = 0;                 // Dot grid, row-major (x fastest).
+  std::vector<Eigen::Vector3d> dot_positions;   // p_q, sample frame [m].
+  double dot_cell_area_m2 = 0;                  // Monitor area per dot of the grid (for d omega).
+  Eigen::Vector3d camera_centre = Eigen::Vector3d::Zero();  // Sample frame [m].
+  std::vector<float> value;   // R [1/sr], point-major: value[p * num_dots + q].
+  std::vector<float> sigma;   // Its standard deviation, same layout (empty: unknown).
+  std::vector<uint8_t> train; // Per dot: 1 fitted, 0 held out.
+  std::vector<uint8_t> point_status;  // Per point: DmfStatus from processing (kOk to fit).
+
+  int num_points() const { return width * height; }
+  int num_dots() const { return static_cast<int>(dot_positions.size()); }
+  Eigen::Vector3d PointPosition(int p) const;
+  // Slice of point p in the optical frame (light side +z), rho_d by Eq. 14.
+  DmfSlice Slice(int p) const;
+  Status Check() const;
+};
+
+// The sample frame -> optical frame of optics/dual_microfacet_btdf.h: the 180-degree rotation
+// about x, so that light from the monitor (z < 0) arrives from +z and the camera lies on -z.
+inline Eigen::Vector3d SampleToOptical(const Eigen::Vector3d& v) { return Eigen::Vector3d(v.x(), -v.y(), -v.z()); }
+
+// Every other dot of the grid ((ix + iy) odd) held out, for prediction tests; or none.
+std::vector<uint8_t> InterleavedTrainMask(int nx, int ny, bool hold_out);
+
+struct DmfMapFitOptions {
+  DmfPointFitOptions point;
+  bool cluster = true;
+  DmfClusteringOptions clustering;
+  int num_threads = 2;
+  bool Check(std::string* error) const;
+};
+
+struct DmfMapTimings {
+  double diffuse_s = 0, clustering_s = 0, representative_fit_s = 0, interpolation_s = 0, total_s = 0;
+};
+
+struct DmfMaps {
+  int width = 0, height = 0, ndf_resolution = 0;
+  double eta = 1.5;  // Slab index the maps were fitted with.
+  std::vector<DmfPointFit> fits;  // One per point (log_ndf empty where nothing was fitted).
+  int num_fitted = 0;             // Points fitted directly (representatives or all).
+  DmfClustering clustering;       // Empty unless clustered.
+  DmfMapTimings timings;
+  // Channels alpha, smith_alpha, k_s, rho_d, residual (ln RMS of Eq. 15), status; finite
+  // everywhere (defaults where status says nothing was fitted).
+  Image ToImage() const;
+};
+
+Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& options, DmfMaps* maps);
+
+// Relative RMS error over the held-out in-lobe dots of point p (HeldOutRelativeRms), -1 if none.
+double DmfHeldOutError(const DmfSliceSet& slices, const DmfMaps& maps, int p, double lobe_fraction = 0.1);
+
+}  // namespace thinslab

@@ -1,0 +1,421 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "fit/dmf_point_fit.h"
+
+#include <ceres/ceres.h>
+#include <glog/logging.h>
+
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "optics/dual_microfacet_btdf.h"
+#include "optics/microfacet.h"
+
+namespace thinslab {
+namespace {
+
+// D = 1 and G = 1: DualMicrofacetBtdf::EvalTop/EvalBottom then return A_t and A_b of Eq. 16
+// without the shadowing, which the fit varies separately.
+struct UnitNdf {
+  double D(const Eigen::Vector3d& /*m*/) const { return 1.0; }
+};
+struct UnitShadowing {
+  using Scalar = double;
+  double G(const Eigen::Vector3d&, const Eigen::Vector3d&, const Eigen::Vector3d&) const { return 1.0; }
+};
+using UnitBtdf = DualMicrofacetBtdf<UnitNdf, UnitShadowing>;
+
+// Everything Eq. 16 needs of one usable training measurement.
+struct Row {
+  DmfNdfGrid::Stencil top, bottom;  // ln D(h_t), ln D(h_b) stencils.
+  double log_value;                 // ln(R - rho_d).
+  double log_a_top, log_a_bottom;   // ln A_t, ln A_b without shadowing.
+  double log_g_top, log_g_bottom;   // ln G at the current smith alpha.
+  Eigen::Vector3d i, w, ip, o, h_top, h_bottom;  // For G: G1(i,h_t) G1(w,h_t), G1(i',h_b) G1(o,h_b).
+  Eigen::Vector3d direction;        // i (Eq. 18 mean direction).
+  double measured;                  // R - rho_d, weighted by the dot's solid angle.
+  double solid_angle;
+};
+
+template <typename T>
+T LogShadowing(const T& smith_alpha, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& m) {
+  using std::log;
+  const GgxDistributionT<T> ggx(smith_alpha);
+  return log(ggx.G(a.cast<T>(), b.cast<T>(), m.cast<T>()));
+}
+
+void UpdateShadowing(double smith_alpha, std::vector<Row>* rows) {
+  for (Row& r : *rows) {
+    r.log_g_top = LogShadowing(smith_alpha, r.i, r.w, r.h_top);
+    r.log_g_bottom = LogShadowing(smith_alpha, r.ip, r.o, r.h_bottom);
+  }
+}
+
+// Solves Eqs. 16-17 (and Eq. 19 when `symmetric`) for ln D per cell at the given alpha.
+bool SolveNdf(const std::vector<Row>& rows, const DmfNdfGrid& grid, double alpha, double smoothness, bool symmetric,
+              std::vector<double>* log_d_cells) {
+  // Unknown index of a cell: mirror pairs share the smaller index under Eq. 19.
+  const int nc = grid.num_cells();
+  auto index = [&](int cell) {
+    const int u = grid.unknown(cell);
+    if (u < 0 || !symmetric) return u;
+    return std::min(u, grid.unknown(grid.MirrorCell(cell)));
+  };
+  const int nu = grid.num_unknowns();
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(rows.size() * 64 + static_cast<size_t>(nu) * 25);
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(nu);
+
+  // Accumulates one weighted row (coefficients on cells, right-hand side) into AᵀA and Aᵀb.
+  std::array<int, 8> idx;
+  std::array<double, 8> coef;
+  auto add_row = [&](int count, double b, double weight) {
+    int m = 0;
+    for (int k = 0; k < count; ++k) {
+      const int u = index(idx[k]);
+      if (u < 0) {
+        b -= coef[k] * DmfNdfGrid::kLogEpsilon;  // Fixed boundary cell (Eq. 17).
+      } else {
+        idx[m] = u;
+        coef[m] = coef[k];
+        ++m;
+      }
+    }
+    for (int a = 0; a < m; ++a) {
+      rhs[idx[a]] += weight * coef[a] * b;
+      for (int c = 0; c < m; ++c) triplets.emplace_back(idx[a], idx[c], weight * coef[a] * coef[c]);
+    }
+  };
+  for (const Row& r : rows) {
+    for (int k = 0; k < 4; ++k) {
+      idx[k] = r.top.cells[k];
+      coef[k] = alpha * r.top.weights[k];
+      idx[4 + k] = r.bottom.cells[k];
+      coef[4 + k] = (1 - alpha) * r.bottom.weights[k];
+    }
+    const double b =
+        r.log_value - alpha * (r.log_a_top + r.log_g_top) - (1 - alpha) * (r.log_a_bottom + r.log_g_bottom);
+    add_row(8, b, 1.0);
+  }
+  // Eq. 17: 4 ln D(h) - sum of the four neighbours = 0 for every unknown cell.
+  const int n = grid.n();
+  for (int u = 0; u < nu; ++u) {
+    const int cell = grid.cell_of_unknown(u);
+    const int row = cell / n, col = cell % n;
+    idx = {cell, (row - 1) * n + col, (row + 1) * n + col, row * n + col - 1, row * n + col + 1, 0, 0, 0};
+    coef = {4, -1, -1, -1, -1, 0, 0, 0};
+    add_row(5, 0.0, smoothness);
+  }
+  // Under Eq. 19 the larger index of each mirror pair is unused: pin it so the system stays definite.
+  if (symmetric) {
+    for (int u = 0; u < nu; ++u) {
+      if (index(grid.cell_of_unknown(u)) != u) triplets.emplace_back(u, u, 1.0);
+    }
+  }
+  Eigen::SparseMatrix<double> normal(nu, nu);
+  normal.setFromTriplets(triplets.begin(), triplets.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
+  if (solver.info() != Eigen::Success) return false;
+  const Eigen::VectorXd x = solver.solve(rhs);
+  if (solver.info() != Eigen::Success || !x.allFinite()) return false;
+  log_d_cells->assign(nc, DmfNdfGrid::kLogEpsilon);
+  for (int cell = 0; cell < nc; ++cell) {
+    const int u = index(cell);
+    if (u >= 0) (*log_d_cells)[cell] = x[u];
+  }
+  return true;
+}
+
+double LookupStencil(const DmfNdfGrid::Stencil& s, const std::vector<double>& log_d) {
+  double v = 0;
+  for (int k = 0; k < 4; ++k) v += s.weights[k] * log_d[s.cells[k]];
+  return v;
+}
+
+// ln of the predicted rho of a row (Eq. 11 in logarithms), D unnormalised.
+double LogPrediction(const Row& r, const std::vector<double>& log_d, double alpha) {
+  return alpha * (r.log_a_top + r.log_g_top + LookupStencil(r.top, log_d)) +
+         (1 - alpha) * (r.log_a_bottom + r.log_g_bottom + LookupStencil(r.bottom, log_d));
+}
+
+// Eq. 18: squared distance between the measured and the predicted BTDF-weighted mean incident
+// direction (integrals as sums over the dots with their solid angles).
+double MeanDirectionMismatch(const std::vector<Row>& rows, const std::vector<double>& log_d, double alpha,
+                             const Eigen::Vector3d& measured_mean) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double total = 0;
+  // Exponents relative to the largest keep the sum finite.
+  double max_log = -1e300;
+  std::vector<double> logs(rows.size());
+  for (size_t k = 0; k < rows.size(); ++k) {
+    logs[k] = LogPrediction(rows[k], log_d, alpha);
+    max_log = std::max(max_log, logs[k]);
+  }
+  for (size_t k = 0; k < rows.size(); ++k) {
+    const double v = std::exp(logs[k] - max_log) * rows[k].solid_angle;
+    sum += v * rows[k].direction;
+    total += v;
+  }
+  if (!(total > 0)) return 1e300;
+  return (sum / total - measured_mean).squaredNorm();
+}
+
+double GoldenSectionAlpha(const std::vector<Row>& rows, const std::vector<double>& log_d,
+                          const Eigen::Vector3d& measured_mean, double tolerance) {
+  constexpr double kInvPhi = 0.6180339887498949;
+  double a = 0, b = 1;
+  double c = b - kInvPhi * (b - a), d = a + kInvPhi * (b - a);
+  double fc = MeanDirectionMismatch(rows, log_d, c, measured_mean);
+  double fd = MeanDirectionMismatch(rows, log_d, d, measured_mean);
+  while (b - a > tolerance) {
+    if (fc < fd) {
+      b = d;
+      d = c;
+      fd = fc;
+      c = b - kInvPhi * (b - a);
+      fc = MeanDirectionMismatch(rows, log_d, c, measured_mean);
+    } else {
+      a = c;
+      c = d;
+      fc = fd;
+      d = a + kInvPhi * (b - a);
+      fd = MeanDirectionMismatch(rows, log_d, d, measured_mean);
+    }
+  }
+  // The endpoints are legitimate answers (one rough face): take them when they are better.
+  double best = 0.5 * (a + b), f_best = MeanDirectionMismatch(rows, log_d, best, measured_mean);
+  for (double end : {0.0, 1.0}) {
+    const double f = MeanDirectionMismatch(rows, log_d, end, measured_mean);
+    if (f < f_best) {
+      f_best = f;
+      best = end;
+    }
+  }
+  return best;
+}
+
+// Residual of Eq. 15 as a function of (ln smith_alpha, level): the shape of D and alpha fixed.
+struct SmithResidual {
+  const Row* row;
+  double alpha;
+  double fixed;  // ln(R - rho_d) - alpha (ln A_t + ln D_t) - (1 - alpha) (ln A_b + ln D_b).
+  template <typename T>
+  bool operator()(const T* log_smith_alpha, const T* level, T* residual) const {
+    using std::exp;
+    const T a = exp(log_smith_alpha[0]);
+    residual[0] = T(fixed) - level[0] - T(alpha) * LogShadowing(a, row->i, row->w, row->h_top) -
+                  T(1 - alpha) * LogShadowing(a, row->ip, row->o, row->h_bottom);
+    return true;
+  }
+};
+
+double FitSmithAlpha(const std::vector<Row>& rows, const std::vector<double>& log_d, double alpha, double start) {
+  double log_a = std::log(start), level = 0;
+  ceres::Problem problem;
+  for (const Row& r : rows) {
+    const double fixed = r.log_value - alpha * (r.log_a_top + LookupStencil(r.top, log_d)) -
+                         (1 - alpha) * (r.log_a_bottom + LookupStencil(r.bottom, log_d));
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<SmithResidual, 1, 1, 1>(new SmithResidual{&r, alpha, fixed}), nullptr,
+        &log_a, &level);
+  }
+  problem.SetParameterLowerBound(&log_a, 0, std::log(0.01));
+  problem.SetParameterUpperBound(&log_a, 0, std::log(1.5));
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = 30;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  return std::exp(log_a);
+}
+
+}  // namespace
+
+const char* DmfStatusName(DmfStatus status) {
+  switch (status) {
+    case DmfStatus::kOk: return "ok";
+    case DmfStatus::kNoLobe: return "no_lobe";
+    case DmfStatus::kSpecular: return "specular";
+    case DmfStatus::kSaturated: return "saturated";
+    case DmfStatus::kOutside: return "outside";
+    case DmfStatus::kNotConverged: return "not_converged";
+    case DmfStatus::kInterpolated: return "interpolated";
+  }
+  return "unknown";
+}
+
+bool DmfPointFitOptions::Check(std::string* error) const {
+  std::ostringstream e;
+  if (ndf_resolution < 8 || ndf_resolution > 256) e << "ndf_resolution must be in [8, 256], got " << ndf_resolution;
+  else if (!(eta > 1 && eta < 4)) e << "eta must be in (1, 4), got " << eta;
+  else if (!(smoothness > 0)) e << "smoothness must be > 0, got " << smoothness;
+  else if (!(initial_smith_alpha >= 0.01 && initial_smith_alpha <= 1.5))
+    e << "initial_smith_alpha must be in [0.01, 1.5], got " << initial_smith_alpha;
+  else if (!(alpha_tolerance > 0 && alpha_tolerance < 0.5)) e << "alpha_tolerance must be in (0, 0.5), got " << alpha_tolerance;
+  else if (max_alpha_iterations < 1) e << "max_alpha_iterations must be >= 1, got " << max_alpha_iterations;
+  else if (!(min_relative_value > 0 && min_relative_value < 1))
+    e << "min_relative_value must be in (0, 1), got " << min_relative_value;
+  else if (min_measurements < 3) e << "min_measurements must be >= 3, got " << min_measurements;
+  *error = e.str();
+  return error->empty();
+}
+
+double EstimateDiffuse(const DmfSlice& slice, int nx, int ny, double fraction) {
+  CHECK_EQ(nx * ny, slice.num_dots());
+  double sum = 0;
+  int count = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (slice.train[q]) {
+      sum += slice.value[q];
+      ++count;
+    }
+  }
+  if (count == 0 || !(sum > 0)) return 0;
+  const double threshold = fraction * sum / count;
+  auto candidate = [&](int x, int y) {
+    if (x < 0 || y < 0 || x >= nx || y >= ny) return false;
+    const int q = y * nx + x;
+    return slice.train[q] && slice.value[q] > threshold;
+  };
+  double best = -1;
+  for (int y = 0; y < ny; ++y) {
+    for (int x = 0; x < nx; ++x) {
+      if (!candidate(x, y)) continue;
+      double s = 0;
+      int n = 0;
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (candidate(x + dx, y + dy)) {
+            s += slice.value[(y + dy) * nx + x + dx];
+            ++n;
+          }
+        }
+      }
+      const double mean = s / n;
+      if (best < 0 || mean < best) best = mean;
+    }
+  }
+  return std::max(0.0, best);
+}
+
+DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid, const DmfPointFitOptions& options) {
+  CHECK_EQ(grid.n(), options.ndf_resolution);
+  DmfPointFit fit;
+  fit.rho_d = slice.rho_d;
+  fit.smith_alpha = options.initial_smith_alpha;
+  fit.log_ndf.assign(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
+
+  // Usable training measurements: above the noise floor and the relative threshold, with both
+  // virtual configurations transmitting.
+  double peak = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (slice.train[q]) peak = std::max(peak, slice.value[q] - slice.rho_d);
+  }
+  const UnitBtdf unit(UnitNdf{}, UnitShadowing{}, options.eta);
+  std::vector<Row> rows;
+  Eigen::Vector3d measured_mean = Eigen::Vector3d::Zero();
+  double measured_total = 0;
+  int significant = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (!slice.train[q]) continue;
+    const double v = slice.value[q] - slice.rho_d;
+    const double sigma = slice.sigma.empty() ? 0 : slice.sigma[q];
+    if (!(v > options.noise_sigmas * sigma) || !(v > options.min_relative_value * peak)) continue;
+    ++significant;
+    const Eigen::Vector3d& i = slice.i[q];
+    const Eigen::Vector3d& o = slice.o;
+    const double a_top = unit.EvalTop(i, o), a_bottom = unit.EvalBottom(i, o);
+    if (!(a_top > 0) || !(a_bottom > 0)) continue;
+    Row r;
+    r.h_top = unit.TopHalfVector(i, o);
+    r.h_bottom = unit.BottomHalfVector(i, o);
+    r.top = grid.Lookup(r.h_top);
+    r.bottom = grid.Lookup(r.h_bottom);
+    r.log_value = std::log(v);
+    r.log_a_top = std::log(a_top);
+    r.log_a_bottom = std::log(a_bottom);
+    r.i = i;
+    r.w = unit.OutgoingMomentum(o) / options.eta;
+    r.ip = unit.IncidentMomentum(i) / options.eta;
+    r.o = o;
+    r.direction = i;
+    r.solid_angle = slice.solid_angle[q];
+    r.measured = v;
+    measured_mean += v * r.solid_angle * i;
+    measured_total += v * r.solid_angle;
+    rows.push_back(r);
+  }
+  fit.num_used = static_cast<int>(rows.size());
+  if (static_cast<int>(rows.size()) < options.min_measurements) {
+    fit.status = significant == 0 ? DmfStatus::kNoLobe : DmfStatus::kSpecular;
+    return fit;
+  }
+  measured_mean /= measured_total;
+  UpdateShadowing(fit.smith_alpha, &rows);
+
+  // Eqs. 15-19: alternate NDF and alpha, first with polar symmetry, then one unconstrained pass.
+  std::vector<double> log_d;
+  double alpha = 0.5;
+  bool converged = false;
+  for (int it = 0; it < options.max_alpha_iterations; ++it) {
+    if (!SolveNdf(rows, grid, alpha, options.smoothness, true, &log_d)) {
+      fit.status = DmfStatus::kNoLobe;
+      return fit;
+    }
+    const double next = GoldenSectionAlpha(rows, log_d, measured_mean, options.golden_tolerance);
+    fit.alpha_iterations = it + 1;
+    const double change = std::abs(next - alpha);
+    alpha = next;
+    if (change < options.alpha_tolerance) {
+      converged = true;
+      break;
+    }
+  }
+  if (!SolveNdf(rows, grid, alpha, options.smoothness, false, &log_d)) {
+    fit.status = DmfStatus::kNoLobe;
+    return fit;
+  }
+  if (options.fit_smith_alpha) {
+    fit.smith_alpha = FitSmithAlpha(rows, log_d, alpha, fit.smith_alpha);
+    UpdateShadowing(fit.smith_alpha, &rows);
+    if (!SolveNdf(rows, grid, alpha, options.smoothness, false, &log_d)) {
+      fit.status = DmfStatus::kNoLobe;
+      return fit;
+    }
+  }
+  double sum_sq = 0;
+  for (const Row& r : rows) sum_sq += Sqr(r.log_value - LogPrediction(r, log_d, alpha));
+  fit.log_rms_residual = std::sqrt(sum_sq / rows.size());
+
+  // k_s: the level D absorbed (Eq. 13), D normalised to unit projected area.
+  fit.k_s = grid.ProjectedIntegral(log_d);
+  const double log_k = std::log(fit.k_s);
+  for (int cell = 0; cell < grid.num_cells(); ++cell) {
+    fit.log_ndf[cell] = grid.InDisk(cell) ? log_d[cell] - log_k : DmfNdfGrid::kLogEpsilon;
+  }
+  fit.alpha = alpha;
+  fit.status = converged ? DmfStatus::kOk : DmfStatus::kNotConverged;
+  return fit;
+}
+
+double PredictDualMicrofacet(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& i,
+                             const Eigen::Vector3d& o) {
+  if (fit.log_ndf.empty() || !(fit.k_s > 0)) return fit.rho_d;
+  const UnitBtdf unit(UnitNdf{}, UnitShadowing{}, eta);
+  const double a_top = unit.EvalTop(i, o), a_bottom = unit.EvalBottom(i, o);
+  const Eigen::Vector3d h_top = unit.TopHalfVector(i, o), h_bottom = unit.BottomHalfVector(i, o);
+  const Eigen::Vector3d w = unit.OutgoingMomentum(o) / eta, ip = unit.IncidentMomentum(i) / eta;
+  const GgxDistribution smith(fit.smith_alpha);
+  const double top = a_top * smith.G(i, w, h_top) * std::exp(grid.Interpolate(fit.log_ndf, h_top));
+  const double bottom = a_bottom * smith.G(ip, o, h_bottom) * std::exp(grid.Interpolate(fit.log_ndf, h_bottom));
+  double rho = 0;
+  if (fit.alpha >= 1) rho = top;
+  else if (fit.alpha <= 0) rho = bottom;
+  else if (top > 0 && bottom > 0) rho = std::exp(fit.alpha * std::log(top) + (1 - fit.alpha) * std::log(bottom));
+  return fit.rho_d + fit.k_s * rho;
+}
+
+}  // namespace thinslab

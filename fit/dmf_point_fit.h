@@ -1,0 +1,120 @@
+// SPDX-License-Identifier: Apache-2.0
+// Dual-microfacet fit of one surface point's BTDF slice (Dai et al. 2009, Sec. 4.2).
+//
+// Model (Eq. 13): R(i, o) = rho_d + k_s rho(i, o), rho the dual-microfacet BTDF of
+// optics/dual_microfacet_btdf.h (Eq. 11 interpolation of the virtual configurations, Eqs. 6
+// and 10) with a tabulated NDF D and Smith shadowing of roughness smith_alpha (Walter et al.
+// 2007, Eq. 23 with the GGX G1).
+//
+// Algorithm:
+//  1. NDF step (Eqs. 15-17): one sparse linear least-squares problem in ln D per point,
+//       alpha ln D(h_t) + (1 - alpha) ln D(h_b) = ln(R - rho_d) - alpha ln A_t - (1 - alpha) ln A_b
+//     for every training measurement above the noise floor, plus the Laplacian smoothness rows
+//     of Eq. 17 (weight `smoothness`), boundary cells fixed at ln 1e-6. k_s is not separated
+//     here: the level of ln D absorbs ln k_s, and k_s is the projected integral of the solved D
+//     (after which D is normalised). Solved by sparse Cholesky (Eigen SimplicialLDLT) of the
+//     normal equations.
+//  2. alpha step (Eq. 18): golden-section search on [0, 1] for the alpha whose predicted
+//     BTDF-weighted mean incident direction matches the measured one, D fixed.
+//  Alternate from alpha = 0.5 until alpha moves by less than `alpha_tolerance`, first with the
+//  polar symmetry of Eq. 19 (mirror cells share one unknown), then once more without it.
+//  3. Smith roughness (Sec. 4.2): Levenberg-Marquardt (Ceres) on the Eq. 15 residuals over
+//     smith_alpha with alpha and the shape of D fixed (a free log level is fitted with it, since
+//     G changes the level that D has absorbed); then one final NDF step at the new value.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "fit/dmf_ndf_grid.h"
+
+namespace thinslab {
+
+// One surface point's measurements in the optical frame of optics/dual_microfacet_btdf.h
+// (light side +z: i.z > 0, o.z < 0).
+struct DmfSlice {
+  Eigen::Vector3d o = Eigen::Vector3d(0, 0, -1);  // View direction (unit, o.z < 0).
+  std::vector<Eigen::Vector3d> i;                 // Light direction of dot q (unit, i.z > 0).
+  std::vector<double> value;                      // R(i_q, o) of Eq. 12 [1/sr].
+  std::vector<double> sigma;                      // Its standard deviation [1/sr] (0: unknown).
+  std::vector<double> solid_angle;                // Solid angle of dot q's grid cell seen from x [sr].
+  std::vector<uint8_t> train;                     // 1: used by the fit; 0: held out.
+  double rho_d = 0;                               // Diffuse term of Eq. 13 [1/sr] (Eq. 14).
+  int num_dots() const { return static_cast<int>(i.size()); }
+};
+
+enum class DmfStatus : uint8_t {
+  kOk = 0,
+  kNoLobe = 1,        // Fewer than min_measurements training dots above the noise floor.
+  kSpecular = 2,      // Lobe narrower than the dot spacing: NDF unresolved (alpha unknown).
+  kSaturated = 3,     // Too many of the point's dot measurements saturated.
+  kOutside = 4,       // Point not seen by the camera or off the sample.
+  kNotConverged = 5,  // alpha still moving after max_alpha_iterations (result kept).
+  kInterpolated = 6,  // Clustered run: model interpolated from representatives (Eqs. 20-22).
+};
+const char* DmfStatusName(DmfStatus status);
+
+struct DmfPointFitOptions {
+  int ndf_resolution = 32;         // N: N x N cells of the orthographic NDF grid (Dai Table 1: 32 x 32).
+  double eta = 1.5;                // Slab index over air (known, Dai Sec. 4.2).
+  double smoothness = 0.03;        // Weight of the Eq. 17 Laplacian rows against the Eq. 16 rows.
+  double initial_smith_alpha = 0.2;  // Dai Sec. 4.2: "Iteration is first performed assuming alpha_b = 0.2".
+  bool fit_smith_alpha = true;
+  double alpha_tolerance = 0.01;   // Dai: stop when alpha changes by less than 0.01.
+  int max_alpha_iterations = 10;   // Dai: "converges in fewer than 10 steps".
+  double golden_tolerance = 1e-3;  // Bracket width at which the golden-section search stops.
+  // A measurement enters Eq. 16 when R - rho_d exceeds both this fraction of the slice's peak and
+  // noise_sigmas standard deviations (its logarithm is meaningless below).
+  double min_relative_value = 0.02;
+  double noise_sigmas = 3;
+  int min_measurements = 8;        // Fewer usable training dots: status kNoLobe or kSpecular.
+  bool Check(std::string* error) const;
+};
+
+struct DmfPointFit {
+  DmfStatus status = DmfStatus::kNoLobe;
+  double alpha = 0.5;        // Eq. 11 weight: 1 = rough top (monitor side), 0 = rough bottom.
+  double smith_alpha = 0.2;  // Roughness of the Smith shadowing term.
+  double k_s = 0;            // Eq. 13 scale [unitless]: integral of the unnormalised D.
+  double rho_d = 0;          // [1/sr], copied from the slice.
+  std::vector<double> log_ndf;  // ln D per cell (N*N, D normalised: projected integral 1).
+  int alpha_iterations = 0;
+  int num_used = 0;             // Training measurements in Eq. 16.
+  double log_rms_residual = 0;  // RMS of the Eq. 15 residuals in ln units at the solution.
+};
+
+// Dai Eq. 14, rho_d = min_q { R_q : I_q > 0.05 I_avg }, over the training dots of a slice whose
+// dots lie on an nx x ny grid (row-major). The minimum of single noisy measurements is biased
+// low by a few standard deviations, so each candidate enters as the mean of its 3 x 3 grid
+// neighbourhood (candidates only). `fraction` is Dai's 0.05. 0 when no dot qualifies.
+double EstimateDiffuse(const DmfSlice& slice, int nx, int ny, double fraction = 0.05);
+
+// Fits one slice. `grid` must have options.ndf_resolution.
+DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid, const DmfPointFitOptions& options);
+
+// Predicted R(i, o) = rho_d + k_s rho(i, o) of a fit (0 where the model has no transmission).
+double PredictDualMicrofacet(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& i,
+                             const Eigen::Vector3d& o);
+
+// Relative RMS error of a prediction on the held-out dots of `slice` inside the lobe (measured
+// R - rho_d above `lobe_fraction` of the held-out peak): sqrt(sum (pred - meas)^2 / sum
+// (meas - rho_d)^2). -1 when no held-out dot is in the lobe. `predict` maps (i, o) to R.
+template <typename Predict>
+double HeldOutRelativeRms(const DmfSlice& slice, double lobe_fraction, const Predict& predict) {
+  double peak = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (!slice.train[q]) peak = std::max(peak, slice.value[q] - slice.rho_d);
+  }
+  double num = 0, den = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (slice.train[q] || slice.value[q] - slice.rho_d < lobe_fraction * peak) continue;
+    const double d = predict(slice.i[q], slice.o) - slice.value[q];
+    num += d * d;
+    den += (slice.value[q] - slice.rho_d) * (slice.value[q] - slice.rho_d);
+  }
+  return den > 0 ? std::sqrt(num / den) : -1;
+}
+
+}  // namespace thinslab
