@@ -1,11 +1,18 @@
 // SPDX-License-Identifier: Apache-2.0
 // Monte Carlo photon tracer for a non-absorbing slab of index eta in air bounded by two rough
 // dielectric interfaces (the ground truth of Dai et al. 2009, Fig. 3 and Fig. 5, for
-// optics/dual_microfacet_btdf.h). Each interface is a Smith microsurface (GGX, uncorrelated
+// optics/dual_microfacet_btdf.h). Each interface is a Smith microsurface (GGX or Beckmann,
+// isotropic or anisotropic with alpha_x, alpha_y along the slab x and y axes, uncorrelated
 // masking of Walter et al. 2007, Eq. 23): at every hit the tracer
 //   1. samples a microfacet normal m from the distribution of visible normals
-//      D_wi(m) = G1(wi) max(0, wi . m) D(m) / (wi . n) (Heitz 2018, "Sampling the GGX
-//      Distribution of Visible Normals", exact for GGX),
+//      D_wi(m) = G1(wi) max(0, wi . m) D(m) / (wi . n), exactly for both NDFs:
+//      GGX by Heitz 2018, "Sampling the GGX Distribution of Visible Normals" (stretch, sample
+//      the projected hemisphere, unstretch); Beckmann by the slope-space routine of Heitz and
+//      d'Eon 2014, "Importance Sampling Microfacet-Based BSDFs using the Distribution of
+//      Visible Normals" (stretch to unit roughness, sample the visible-slope marginal by
+//      numerical inversion of its CDF as improved by Jakob 2014 / pbrt-v3 BeckmannSample11,
+//      the other slope from its Gaussian, rotate, unstretch). No photon weights: every
+//      photon still carries weight 1 (SampleVisibleNormal below is chi-square tested),
 //   2. reflects with probability F(wi . m) (optics/fresnel.h), else refracts about m,
 //   3. lets the photon leave the microsurface with probability G1(wo, m) (chi^+ included); the
 //      rest is counted as "masked" (light that single-scattering Smith theory drops).
@@ -23,16 +30,25 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace thinslab {
 
-enum class RoughSlabNdf { kGgx };
+enum class RoughSlabNdf { kGgx, kBeckmann };
+
+// "ggx" / "beckmann".
+const char* RoughSlabNdfName(RoughSlabNdf ndf);
+bool ParseRoughSlabNdf(const std::string& name, RoughSlabNdf* ndf);
 
 struct RoughSlabPhotonTracerOptions {
   double eta = 1.5;             // Slab index over air, unitless, > 1.
-  double alpha_top = 0.3;       // GGX roughness of the incident-side face, unitless [1e-3, 2].
-  double alpha_bottom = 0.001;  // GGX roughness of the far face.
+  // Roughness of the incident-side (top, +z) face along x, unitless [1e-3, 2], and along y;
+  // alpha_*_y = 0 means isotropic (alpha_y = alpha_x).
+  double alpha_top = 0.3;
+  double alpha_bottom = 0.001;  // Roughness of the far face along x.
+  double alpha_top_y = 0;
+  double alpha_bottom_y = 0;
   RoughSlabNdf ndf_top = RoughSlabNdf::kGgx;
   RoughSlabNdf ndf_bottom = RoughSlabNdf::kGgx;
   Eigen::Vector3d wi = Eigen::Vector3d(0, 0, 1);  // Unit, wi.z > 0.
@@ -65,5 +81,11 @@ struct RoughSlabPhotonTracerResult {
 };
 
 RoughSlabPhotonTracerResult TraceRoughSlab(const RoughSlabPhotonTracerOptions& options);
+
+// One microfacet normal from the distribution of visible normals of `ndf` (roughness alpha_x,
+// alpha_y) seen from wi (local frame, unit, wi.z > 0), from uniforms u1, u2 in [0, 1): density
+// over solid angle G1(wi) max(0, wi . m) D(m) / wi.z (exact for both kinds). Exposed for tests.
+Eigen::Vector3d SampleVisibleNormal(RoughSlabNdf ndf, double alpha_x, double alpha_y, const Eigen::Vector3d& wi,
+                                    double u1, double u2);
 
 }  // namespace thinslab
