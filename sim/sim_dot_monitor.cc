@@ -125,7 +125,78 @@ Status SimDotMonitor::ShowPattern(const std::string& pattern) {
   if (spec.kind == PatternSpec::Kind::kDots) {
     for (const PatternSpec::Dot& dot : spec.dots) shown_dots_.emplace_back(dot.x_px, dot.y_px);
   }
+  // Lit bounding box and the point sources of the pattern (for rendering through the sample).
+  lit_min_px_ = Eigen::Vector2d(1e30, 1e30);
+  lit_max_px_ = Eigen::Vector2d(-1e30, -1e30);
+  for (int y = 0; y < levels_.height(); ++y) {
+    for (int x = 0; x < levels_.width(); ++x) {
+      if (levels_.at(x, y) <= 0) continue;
+      lit_min_px_ = lit_min_px_.cwiseMin(Eigen::Vector2d(x, y));
+      lit_max_px_ = lit_max_px_.cwiseMax(Eigen::Vector2d(x + 1, y + 1));
+    }
+  }
+  sources_.clear();
+  const double pitch2 = monitor_.pixel_pitch_m * monitor_.pixel_pitch_m;
+  if (spec.kind == PatternSpec::Kind::kDots) {
+    // Each dot: a point source at its centre whose area is its rasterised coverage (the stamp
+    // of drivers/pattern_id.cc reaches at most ceil(r) + 1 px from the centre).
+    const int half = static_cast<int>(std::ceil(options_.dot_radius_px)) + 1;
+    for (const Eigen::Vector2d& dot : shown_dots_) {
+      double sum = 0;
+      const int cx = static_cast<int>(std::floor(dot.x())), cy = static_cast<int>(std::floor(dot.y()));
+      for (int y = std::max(0, cy - half); y <= std::min(levels_.height() - 1, cy + half); ++y) {
+        for (int x = std::max(0, cx - half); x <= std::min(levels_.width() - 1, cx + half); ++x) {
+          sum += levels_.at(x, y);
+        }
+      }
+      if (sum > 0) sources_.push_back({DotInSample(dot), options_.dot_radiance * sum * pitch2});
+    }
+  } else if (spec.kind != PatternSpec::Kind::kBlack) {
+    sources_ = BlockSources(&levels_, options_.dot_radiance);
+  }
   return Status::Ok();
+}
+
+std::vector<SimDotMonitor::PointSource> SimDotMonitor::BlockSources(const Image* levels, double radiance) const {
+  // Coarse quadrature of the screen: blocks of b x b monitor pixels (about 32 x 32 blocks), each
+  // a point source at its centre carrying the block's emitted radiance x area.
+  const int w = options_.monitor_width_px, h = options_.monitor_height_px;
+  const int b = std::max(1, (std::max(w, h) + 31) / 32);
+  const double pitch2 = monitor_.pixel_pitch_m * monitor_.pixel_pitch_m;
+  std::vector<PointSource> out;
+  for (int y0 = 0; y0 < h; y0 += b) {
+    for (int x0 = 0; x0 < w; x0 += b) {
+      double sum = 0;
+      const int x1 = std::min(w, x0 + b), y1 = std::min(h, y0 + b);
+      for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x) sum += levels ? levels->at(x, y) : 1.0;
+      }
+      if (sum > 0) out.push_back({DotInSample(Eigen::Vector2d(0.5 * (x0 + x1), 0.5 * (y0 + y1))), radiance * sum * pitch2});
+    }
+  }
+  return out;
+}
+
+void SimDotMonitor::SetSample(std::shared_ptr<const SlabSample> sample) {
+  sample_ = std::move(sample);
+  sample_map_for_ = nullptr;
+  components_.clear();
+  direct_weights_.clear();
+  pixel_direct_.clear();
+}
+
+Status SimDotMonitor::SetSampleState(const std::string& state) {
+  if (state.empty()) return Status::Error("sim dot monitor: empty sample state");
+  sample_in_path_ = state != "none";
+  return Status::Ok();
+}
+
+SampleChanger SimDotMonitor::sample_changer() {
+  return [this](const std::string& state) { return SetSampleState(state); };
+}
+
+Eigen::Vector3d SimDotMonitor::CameraCentreInSample() const {
+  return camera_->info().cam_from_sample.Inverse().translation;
 }
 
 Camera* SimDotMonitor::camera() { return camera_.get(); }
@@ -187,6 +258,7 @@ void SimDotMonitor::BuildScreenMap() const {
 }
 
 Image SimDotMonitor::RenderElectrons() const {
+  if (sample_in_path()) return RenderElectronsThroughSample();
   const SimDotMonitorOptions& o = options_;
   const CameraInfo& cam = camera_->info();
   // The camera -> screen map is traced once (5 rays per pixel through the exact inverse
@@ -214,6 +286,158 @@ Image SimDotMonitor::RenderElectrons() const {
       }
       out.at(u, v) = static_cast<float>(sum / (s * s) * scale);
     }
+  }
+  return out;
+}
+
+void SimDotMonitor::BuildSampleMap() const {
+  if (screen_map_.empty()) BuildScreenMap();
+  const SlabSample& sample = *sample_;
+  const CameraInfo& cam = camera_->info();
+  const int s = options_.render_supersample, ss = s * s;
+  const Rigid3d sample_from_cam = cam.cam_from_sample.Inverse();
+  const Eigen::Vector3d eye = sample_from_cam.translation;
+  // Sample-plane point (z = 0) seen through a camera pixel coordinate; false if the ray misses.
+  auto plane = [&](const Eigen::Vector2d& pixel, Eigen::Vector2d* guess, Eigen::Vector2d* x) {
+    const Eigen::Vector3d ray_in_cam = PixelToCameraRay(cam, pixel, guess);
+    *guess = ray_in_cam.head<2>();
+    const Eigen::Vector3d ray = sample_from_cam.rotation * ray_in_cam;
+    const double t = -eye.z() / ray.z();
+    if (!(t > 0)) return false;
+    *x = (eye + t * ray).head<2>();
+    return true;
+  };
+  const size_t num_pixels = static_cast<size_t>(cam.width_px) * cam.height_px;
+  direct_weights_.assign(num_pixels * ss, 1.0f);
+  pixel_direct_.assign(num_pixels, 1);
+  components_.clear();
+  const std::vector<PointSource> black = BlockSources(nullptr, 1.0);
+  std::vector<int> region_of(ss);
+  for (int v = 0; v < cam.height_px; ++v) {
+    Eigen::Vector2d guess((0.5 - cam.cx_px) / cam.fx_px, (v + 0.5 - cam.cy_px) / cam.fy_px);
+    for (int u = 0; u < cam.width_px; ++u) {
+      const int pixel = v * cam.width_px + u;
+      const Eigen::Vector2d centre(u + 0.5, v + 0.5);
+      Eigen::Vector2d c, xp, xm, yp, ym;
+      const bool ok = plane(centre + Eigen::Vector2d(-0.5, 0), &guess, &xm) && plane(centre, &guess, &c) &&
+                      plane(centre + Eigen::Vector2d(0.5, 0), &guess, &xp) &&
+                      plane(centre + Eigen::Vector2d(0, -0.5), &guess, &ym) &&
+                      plane(centre + Eigen::Vector2d(0, 0.5), &guess, &yp);
+      if (!ok) continue;  // Sees no sample plane: direct view (weights 1).
+      const Eigen::Vector2d ju = xp - xm, jv = yp - ym;
+      float* w = &direct_weights_[pixel * static_cast<size_t>(ss)];
+      bool any_direct = false;
+      // Per region: sub-sample count and the sum of their positions.
+      std::vector<std::pair<int, std::pair<int, Eigen::Vector2d>>> acc;
+      for (int a = 0; a < s; ++a) {
+        for (int b = 0; b < s; ++b) {
+          const double du = (b + 0.5) / s - 0.5, dv = (a + 0.5) / s - 0.5;
+          const Eigen::Vector2d x = c + du * ju + dv * jv;
+          const int k = sample.RegionIndexAt(x);
+          float& wk = w[a * s + b];
+          if (k < 0) {
+            wk = 1.0f;  // Off the sample: the monitor directly.
+          } else {
+            const SlabMaterial& m = sample.region(k).material;
+            if (m.IsSmooth()) {
+              const Eigen::Vector3d o = (eye - Eigen::Vector3d(x.x(), x.y(), 0)).normalized();
+              wk = static_cast<float>(m.k_s * SlabSample::FlatSlabTransmittance(o.z(), m.eta));
+            } else {
+              wk = 0.0f;
+            }
+            if (!m.IsSmooth() || m.rho_d > 0) {
+              auto it = std::find_if(acc.begin(), acc.end(), [&](const auto& e) { return e.first == k; });
+              if (it == acc.end()) {
+                acc.push_back({k, {1, x}});
+              } else {
+                ++it->second.first;
+                it->second.second += x;
+              }
+            }
+          }
+          any_direct = any_direct || wk > 0;
+        }
+      }
+      pixel_direct_[pixel] = any_direct ? 1 : 0;
+      for (const auto& e : acc) {
+        ScatterComponent comp;
+        comp.pixel = pixel;
+        comp.region = e.first;
+        comp.weight = static_cast<float>(e.second.first) / ss;
+        const Eigen::Vector2d xm2 = e.second.second / e.second.first;
+        comp.x_in_sample = Eigen::Vector3d(xm2.x(), xm2.y(), 0);
+        comp.black_level_radiance = 0;
+        if (options_.black_radiance > 0) comp.black_level_radiance = ScatteredRadiance(comp, black);
+        components_.push_back(comp);
+      }
+    }
+  }
+  sample_map_for_ = sample_.get();
+}
+
+double SimDotMonitor::ScatteredRadiance(const ScatterComponent& c, const std::vector<PointSource>& sources) const {
+  // L_o(x, o) = sum_q R(x, i_q, o) L_q A_q cos_e cos_i / r^2, R = rho_d + k_s rho (Dai Eq. 13);
+  // the screen emits towards +z of the sample frame, so cos_e = |i.z| = cos_i for a parallel screen.
+  const SlabSample& sample = *sample_;
+  const Eigen::Vector3d emit_normal = -(monitor_.sample_from_monitor.rotation * Eigen::Vector3d::UnitZ());
+  double sum = 0;
+  for (const PointSource& q : sources) {
+    const Eigen::Vector3d d = q.position_in_sample - c.x_in_sample;
+    const double r2 = d.squaredNorm();
+    const double r = std::sqrt(r2);
+    const Eigen::Vector3d i = d / r;
+    const double cos_i = std::abs(i.z()), cos_e = std::abs(emit_normal.dot(i));
+    sum += sample.Transmission(c.region, i) * q.radiance_area * cos_e * cos_i / r2;
+  }
+  return sum;
+}
+
+Image SimDotMonitor::RenderElectronsThroughSample() const {
+  const SimDotMonitorOptions& o = options_;
+  const CameraInfo& cam = camera_->info();
+  if (screen_map_.empty()) BuildScreenMap();
+  if (sample_map_for_ != sample_.get()) BuildSampleMap();
+  const int s = o.render_supersample, ss = s * s;
+  const double scale = o.electrons_per_radiance_us * camera_->exposure_us();
+  Image out(cam.width_px, cam.height_px);
+  // Direct view (off the sample and through smooth regions), skipping pixels whose screen
+  // footprint misses every lit monitor pixel when the black level is 0.
+  const bool lit = lit_min_px_.x() <= lit_max_px_.x();
+  for (int v = 0; v < cam.height_px; ++v) {
+    for (int u = 0; u < cam.width_px; ++u) {
+      const size_t pixel = static_cast<size_t>(v) * cam.width_px + u;
+      if (!pixel_direct_[pixel]) continue;
+      const double* e = &screen_map_[pixel * 6];
+      if (e[0] < -1e29) continue;
+      if (o.black_radiance <= 0) {
+        if (!lit) continue;
+        const double hx = 0.5 * (std::abs(e[2]) + std::abs(e[4])) + 1, hy = 0.5 * (std::abs(e[3]) + std::abs(e[5])) + 1;
+        if (e[0] + hx < lit_min_px_.x() || e[0] - hx > lit_max_px_.x() || e[1] + hy < lit_min_px_.y() ||
+            e[1] - hy > lit_max_px_.y()) {
+          continue;
+        }
+      }
+      const float* w = &direct_weights_[pixel * ss];
+      double sum = 0;
+      for (int a = 0; a < s; ++a) {
+        for (int b = 0; b < s; ++b) {
+          const float wk = w[a * s + b];
+          if (wk <= 0) continue;
+          const double du = (b + 0.5) / s - 0.5, dv = (a + 0.5) / s - 0.5;
+          const double mx = e[0] + du * e[2] + dv * e[4], my = e[1] + du * e[3] + dv * e[5];
+          if (mx < 0 || my < 0 || mx >= o.monitor_width_px || my >= o.monitor_height_px) continue;  // Black bezel.
+          sum += wk * (o.black_radiance + o.dot_radiance * levels_.at(static_cast<int>(mx), static_cast<int>(my)));
+        }
+      }
+      out.at(u, v) = static_cast<float>(sum / ss * scale);
+    }
+  }
+  // Light scattered by the rough regions (and the diffuse term): one table lookup per pixel and
+  // point source.
+  for (const ScatterComponent& c : components_) {
+    double radiance = o.black_radiance * c.black_level_radiance;
+    if (!sources_.empty()) radiance += ScatteredRadiance(c, sources_);
+    out.data()[c.pixel] += static_cast<float>(c.weight * radiance * scale);
   }
   return out;
 }

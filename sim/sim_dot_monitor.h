@@ -11,6 +11,18 @@
 // owns a Camera that sees it, so `thinslab acquire dot-scan --camera sim` drives both through the
 // ordinary device interfaces. Ground truth (3D dot positions in the sample frame, dot radiance)
 // is exposed for tests.
+//
+// With a sample attached (SetSample, sim/slab_sample.h) and a sample state other than "none"
+// (SetSampleState / sample_changer(), which the acquisition script drives), the camera sees
+// the monitor THROUGH the sample (docs/models/dot_scan_rig.md): a camera ray meeting z = 0 at
+// a point x on the sample sees
+//   sum over the shown point sources q of (rho_d + k_s rho(x, i_q, o)) L_q A_q cos_e cos_i / r^2
+// (dots are point sources of their rasterised emitting area A_q = pitch^2 sum of levels,
+// L_q = dot_radiance, cos_e = cos_i = d / r for the parallel screen), plus, on smooth regions,
+// the monitor seen straight through attenuated by k_s times the flat-slab transmittance.
+// Outside the sample rectangle the camera sees the monitor directly. Non-dot patterns ("flat")
+// and the black level are integrated by a coarse quadrature of the screen (blocks of
+// monitor pixels as point sources).
 #pragma once
 
 #include <Eigen/Core>
@@ -21,9 +33,11 @@
 
 #include "core/image.h"
 #include "core/session.h"
+#include "acquire/shadow_map_session.h"
 #include "drivers/camera.h"
 #include "drivers/display.h"
 #include "sim/sensor_model.h"
+#include "sim/slab_sample.h"
 
 namespace thinslab {
 
@@ -94,6 +108,27 @@ class SimDotMonitor : public Projector {
   // Noise-free expected electrons for the shown pattern at the camera's current exposure.
   Image RenderElectrons() const;
 
+  // The sample that sample states other than "none" put in the light path (nullptr: none; the
+  // camera then always sees the monitor directly). Its tables must have been traced for this
+  // rig's camera (SlabSample::Create with CameraCentreInSample()).
+  void SetSample(std::shared_ptr<const SlabSample> sample);
+  const SlabSample* sample() const { return sample_.get(); }
+  // "none" takes the sample out of the path, any other state puts it in.
+  Status SetSampleState(const std::string& state);
+  bool sample_in_path() const { return sample_in_path_ && sample_ != nullptr; }
+  // The SampleChanger for the acquisition scripts (calls SetSampleState).
+  SampleChanger sample_changer();
+  // Camera centre (eye) in the sample frame.
+  Eigen::Vector3d CameraCentreInSample() const;
+  // Emitted flux factor of the point sources of the shown pattern (sample-frame position p_q and
+  // L_q A_q [radiance x m^2]): one per dot for dot patterns, screen blocks otherwise; empty for
+  // black. The black level is not included.
+  struct PointSource {
+    Eigen::Vector3d position_in_sample;
+    double radiance_area;
+  };
+  const std::vector<PointSource>& point_sources() const { return sources_; }
+
   ~SimDotMonitor() override;
 
  private:
@@ -110,6 +145,31 @@ class SimDotMonitor : public Projector {
   void BuildScreenMap() const;
   mutable std::vector<double> screen_map_;
   std::vector<Eigen::Vector2d> shown_dots_;
+
+  // Sample in the path.
+  std::shared_ptr<const SlabSample> sample_;
+  bool sample_in_path_ = false;
+  std::vector<PointSource> sources_;
+  // Bounding box of the lit monitor pixels of the shown pattern (monitor px; empty if min > max).
+  Eigen::Vector2d lit_min_px_ = Eigen::Vector2d(1, 1), lit_max_px_ = Eigen::Vector2d(0, 0);
+  // Per camera pixel, built on the first render through the sample: the weight of each of the
+  // s x s sub-samples' direct view of the screen (1 off the sample, k_s T on smooth regions,
+  // 0 on rough ones) and the scattering components (one per region the pixel covers).
+  struct ScatterComponent {
+    int pixel;                     // v * width + u.
+    int region;                    // Region index.
+    float weight;                  // Fraction of the pixel's sub-samples in the region.
+    Eigen::Vector3d x_in_sample;   // Mean sample point of those sub-samples (z = 0).
+    double black_level_radiance;   // Radiance from the screen's black level (per unit black_radiance).
+  };
+  void BuildSampleMap() const;
+  Image RenderElectronsThroughSample() const;
+  double ScatteredRadiance(const ScatterComponent& c, const std::vector<PointSource>& sources) const;
+  std::vector<PointSource> BlockSources(const Image* levels, double radiance) const;
+  mutable const SlabSample* sample_map_for_ = nullptr;
+  mutable std::vector<float> direct_weights_;      // width * height * s * s.
+  mutable std::vector<uint8_t> pixel_direct_;      // 1 if any sub-sample sees the screen directly.
+  mutable std::vector<ScatterComponent> components_;
 };
 
 }  // namespace thinslab
