@@ -5,6 +5,7 @@
 #include "app/option_parser.h"
 #include "core/exr_io.h"
 #include "sim/contamination_pattern.h"
+#include "sim/synthesize_dot_scan_session.h"
 
 #ifndef THINSLAB_DATA_DIR
 #define THINSLAB_DATA_DIR "data"
@@ -115,6 +116,55 @@ int RunSimPattern(int argc, char** argv) {
   return 0;
 }
 
+// `thinslab sim dot-scan OUT`: the CRT dot rig with the region sample in the path
+// (sim/synthesize_dot_scan_session.h, docs/models/dot_scan_rig.md).
+int RunSimDotScan(int argc, char** argv) {
+  SyntheticDotScanOptions options;
+  std::string out_dir, exposures;
+  int photons_k = static_cast<int>(options.sample.photons_per_region / 1000);
+  OptionParser parser("sim dot-scan");
+  parser.AddPositional("OUT", &out_dir, "new session folder to write");
+  parser.AddInt("grid-nx", &options.session.grid_nx, "dots per row");
+  parser.AddInt("grid-ny", &options.session.grid_ny, "dot rows");
+  parser.AddDouble("margin-fraction", &options.session.margin_fraction, "monitor fraction left free on each side");
+  parser.AddString("exposures-us", &exposures, "exposures of every frame, comma-separated [us]");
+  parser.AddInt("camera-width-px", &options.rig.camera_width_px, "camera image width [px]");
+  parser.AddInt("camera-height-px", &options.rig.camera_height_px, "camera image height [px]");
+  parser.AddDouble("camera-view-width-m", &options.rig.camera_view_width_m, "width the image spans at the sample [m]");
+  parser.AddDouble("camera-tilt-deg", &options.rig.camera_tilt_deg, "camera tilt from the sample normal [deg]");
+  parser.AddInt("supersample", &options.rig.render_supersample, "n x n render sub-samples per camera pixel");
+  parser.AddDouble("monitor-distance-m", &options.rig.monitor_distance_m, "sample-to-monitor distance d [m]");
+  parser.AddDouble("dot-radiance", &options.rig.dot_radiance, "radiance of a lit monitor pixel (relative)");
+  parser.AddDouble("dot-radius-px", &options.rig.dot_radius_px, "radius of a displayed dot [monitor px]");
+  parser.AddInt("photons-k", &photons_k, "Monte Carlo photons per rough region, thousands");
+  parser.AddInt("table-bins", &options.sample.table_bins, "N x N cells of each region's BTDF table");
+  parser.AddInt("threads", &options.sample.num_threads, "threads tracing the region tables");
+  parser.AddDouble("truth-pitch-m", &options.truth_pitch_m, "pitch of ground_truth/regions.exr and the sample grid [m]");
+  parser.AddBool("noise", &options.rig.sensor.enable_noise, "simulate shot and read noise");
+  parser.AddUint64("seed", &options.rig.seed, "seed of the sensor noise");
+  parser.AddUint64("sample-seed", &options.sample.seed, "seed of the Monte Carlo tables");
+  parser.AddString("name", &options.name, "session name");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  if (status.ok() && !exposures.empty()) {
+    status = ParseExposureList(exposures, "exposures-us", &options.session.bracket.exposures_us);
+  }
+  if (status.ok() && photons_k < 1) status = Status::Error("--photons-k: must be >= 1 (thousands of photons)");
+  options.sample.photons_per_region = static_cast<int64_t>(photons_k) * 1000;
+  SyntheticDotScanResult result;
+  if (status.ok()) status = SynthesizeDotScanSession(options, out_dir, &result);
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  std::cout << "wrote dot-scan session " << out_dir << " (" << result.frames << " frames; tables " << result.tracing_s
+            << " s, acquisition " << result.acquisition_s << " s)\n";
+  return 0;
+}
+
 }  // namespace
 
 int RunSim(int argc, char** argv) {
@@ -122,7 +172,8 @@ int RunSim(int argc, char** argv) {
   if (what == "shadow-maps") return RunSimShadowMaps(argc - 1, argv + 1);
   if (what == "pattern") return RunSimPattern(argc - 1, argv + 1);
   if (what == "laser") return RunSimLaser(argc - 1, argv + 1);
-  std::cerr << "usage: thinslab sim shadow-maps OUT | sim laser OUT | sim pattern OUT.exr [options]\n";
+  if (what == "dot-scan") return RunSimDotScan(argc - 1, argv + 1);
+  std::cerr << "usage: thinslab sim shadow-maps OUT | sim laser OUT | sim dot-scan OUT | sim pattern OUT.exr [options]\n";
   return what.empty() || what == "--help" ? 0 : 2;
 }
 

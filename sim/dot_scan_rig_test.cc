@@ -183,7 +183,8 @@ TEST(DotScanRig, DefaultBracketCoversTheLobesUnsaturated) {
   // exposure is unsaturated, so the bracket covers the dynamic range (docs/models/dot_scan_rig.md).
   std::unique_ptr<SimDotMonitor> rig;
   std::shared_ptr<const SlabSample> sample;
-  const SyntheticDotScanOptions o = SmallOptions(100000);
+  SyntheticDotScanOptions o = SmallOptions();
+  o.sample = SyntheticDotScanOptions().sample;  // The default tables (photons, bins).
   ASSERT_TRUE(BuildDotScanRig(o, &rig, &sample).ok());
   const CameraInfo& cam = rig->camera_info();
   std::vector<int> region(cam.width_px * cam.height_px);
