@@ -35,7 +35,8 @@ struct Row {
   double log_g_top, log_g_bottom;   // ln G at the current smith alpha.
   Eigen::Vector3d i, w, ip, o, h_top, h_bottom;  // For G: G1(i,h_t) G1(w,h_t), G1(i',h_b) G1(o,h_b).
   Eigen::Vector3d direction;        // i (Eq. 18 mean direction).
-  double measured;                  // R - rho_d, weighted by the dot's solid angle.
+  double measured;                  // R - rho_d.
+  bool in_core;                     // In the lobe core that Eq. 18 compares.
   double solid_angle;
 };
 
@@ -154,6 +155,7 @@ double MeanDirectionMismatch(const std::vector<Row>& rows, const std::vector<dou
     max_log = std::max(max_log, logs[k]);
   }
   for (size_t k = 0; k < rows.size(); ++k) {
+    if (!rows[k].in_core) continue;
     const double v = std::exp(logs[k] - max_log) * rows[k].solid_angle;
     sum += v * rows[k].direction;
     total += v;
@@ -344,8 +346,11 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
     r.direction = i;
     r.solid_angle = slice.solid_angle[q];
     r.measured = v;
-    measured_mean += v * r.solid_angle * i;
-    measured_total += v * r.solid_angle;
+    r.in_core = v > options.alpha_lobe_fraction * peak;
+    if (r.in_core) {
+      measured_mean += v * r.solid_angle * i;
+      measured_total += v * r.solid_angle;
+    }
     rows.push_back(r);
   }
   fit.num_used = static_cast<int>(rows.size());

@@ -69,6 +69,11 @@ struct DmfPointFitOptions {
   // noise_sigmas standard deviations (its logarithm is meaningless below).
   double min_relative_value = 0.02;
   double noise_sigmas = 3;
+  // Eq. 18 compares mean directions over the lobe core only (measurements above this fraction of
+  // the peak): the far tails carry light that left through internal reflections and multiple
+  // bounces (seen in the photon tracer), which the two virtual configurations do not model and
+  // which would pull alpha towards the middle.
+  double alpha_lobe_fraction = 0.3;
   int min_measurements = 8;        // Fewer usable training dots: status kNoLobe or kSpecular.
   bool Check(std::string* error) const;
 };

@@ -1,0 +1,227 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "fit/dmf_processing.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "calib/board_rectification.h"
+#include "calib/hdr_merge.h"
+#include "core/math.h"
+#include "core/session_io.h"
+
+namespace thinslab {
+namespace {
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+std::string DotName(const Eigen::Vector2d& px) {
+  std::ostringstream s;
+  s << "dot (" << px.x() << ", " << px.y() << ")";
+  return s.str();
+}
+
+}  // namespace
+
+bool DmfProcessingOptions::Check(std::string* error) const {
+  std::ostringstream e;
+  if (pitch_m < 0) e << "pitch must be >= 0, got " << pitch_m;
+  else if (!(dot_radius_px > 0)) e << "dot radius must be > 0 px, got " << dot_radius_px;
+  else if (!(max_saturated_dots >= 0 && max_saturated_dots <= 1)) e << "max_saturated_dots must be in [0, 1]";
+  else if (!(max_saturated_points >= 0 && max_saturated_points <= 1)) e << "max_saturated_points must be in [0, 1]";
+  else if (supersample < 1 || supersample > 8) e << "supersample must be in [1, 8], got " << supersample;
+  *error = e.str();
+  return error->empty();
+}
+
+Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingOptions& options, DmfSliceSet* slices,
+                            DmfProcessingReport* report) {
+  const auto start = std::chrono::steady_clock::now();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error("dmf processing options: " + error);
+  Session session;
+  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
+  THINSLAB_RETURN_IF_ERROR(ValidateSession(session, session_dir));
+  const std::string manifest = session_dir + "/session.json";
+  if (session.rig.cameras.empty()) return Status::Error(manifest + ": rig.cameras is empty");
+  const CameraInfo& camera = session.rig.cameras[0];
+  const MonitorInfo& monitor = session.rig.monitor;
+  if (!monitor.present || !(monitor.pixel_pitch_m > 0)) {
+    return Status::Error(manifest + ": rig.monitor is missing (a CRT dot scan needs the monitor geometry)");
+  }
+
+  // Dot frames grouped by displayed position; the grid must be regular (row-major, x fastest).
+  std::map<std::pair<double, double>, std::vector<const FrameRecord*>> by_dot;  // (y, x) -> bracket.
+  const auto dot_frames = session.UsableFrames("dot");
+  if (dot_frames.empty()) return Status::Error(manifest + ": no usable frames of kind 'dot' (not a dot scan?)");
+  std::string sample_state;
+  for (const FrameRecord* f : dot_frames) {
+    if (f->camera_id != camera.id) continue;
+    if (!f->light.dot_px) {
+      return Status::Error(manifest + ": frame " + std::to_string(f->index) + " (" + f->file +
+                           "): light.dot_px is missing: the dot position of a 'dot' frame is required");
+    }
+    by_dot[{f->light.dot_px->y(), f->light.dot_px->x()}].push_back(f);
+    sample_state = f->sample_state;
+  }
+  std::set<double> xs, ys;
+  for (const auto& [yx, frames] : by_dot) {
+    ys.insert(yx.first);
+    xs.insert(yx.second);
+  }
+  const int nx = static_cast<int>(xs.size()), ny = static_cast<int>(ys.size());
+  if (static_cast<size_t>(nx) * ny != by_dot.size()) {
+    return Status::Error(manifest + ": the " + std::to_string(by_dot.size()) +
+                         " dot positions do not form a regular grid (" + std::to_string(nx) + " x " +
+                         std::to_string(ny) + " distinct x and y)");
+  }
+  if (nx < 4 || ny < 4) {
+    return Status::Error(manifest + ": " + std::to_string(nx) + " x " + std::to_string(ny) +
+                         " dots; the dual-microfacet fit needs at least 4 x 4 (Dai et al. use 40 x 40)");
+  }
+  std::vector<Eigen::Vector2d> displayed;
+  for (const auto& [yx, frames] : by_dot) displayed.emplace_back(yx.second, yx.first);
+
+  // 1. Dot geometry and L_q from the all-dots frame without the sample: the longest exposure
+  // with no saturated dot, else the shortest.
+  auto t = std::chrono::steady_clock::now();
+  const auto all_dots = session.UsableFrames("all_dots", "none");
+  if (all_dots.empty()) {
+    return Status::Error(manifest + ": no usable 'all_dots' frame with sample_state 'none': the dot positions " +
+                         "cannot be calibrated (Dai et al. Sec. 4.1 locate them without the sample)");
+  }
+  DotGeometryResult geometry;
+  DotGeometryOptions geometry_options = options.dot_geometry;
+  geometry_options.dot_radius_px = options.dot_radius_px;
+  std::vector<const FrameRecord*> by_exposure = all_dots;
+  std::sort(by_exposure.begin(), by_exposure.end(),
+            [](const FrameRecord* a, const FrameRecord* b) { return a->exposure_time_us > b->exposure_time_us; });
+  bool have_geometry = false;
+  std::string geometry_error;
+  for (const FrameRecord* f : by_exposure) {
+    Image frame;
+    THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *f, &frame));
+    DotGeometryResult g;
+    const Status s = CalibrateDotGeometry(frame, f->exposure_time_us, camera.saturation_dn - camera.black_level_dn,
+                                          camera, monitor, displayed, geometry_options, &g);
+    if (!s.ok()) {
+      geometry_error = f->file + ": " + s.message();
+      continue;
+    }
+    const bool any_saturated =
+        std::any_of(g.dots.begin(), g.dots.end(), [](const DotRecord& d) { return d.detected && d.saturated; });
+    geometry = g;
+    have_geometry = true;
+    if (!any_saturated) break;
+  }
+  if (!have_geometry) return Status::Error("dot geometry: " + geometry_error);
+  std::vector<double> radiances;
+  for (const DotRecord& d : geometry.dots) {
+    if (!d.detected) return Status::Error("dot geometry: " + DotName(d.dot_px) + " was not found in the all-dots frame");
+    if (!d.saturated) radiances.push_back(d.radiance_dn_per_us);
+  }
+  if (radiances.empty()) {
+    return Status::Error("dot geometry: every dot is saturated in every all-dots frame: L_q cannot be measured");
+  }
+  std::nth_element(radiances.begin(), radiances.begin() + radiances.size() / 2, radiances.end());
+  const double median_radiance = radiances[radiances.size() / 2];
+  report->geometry_s = Seconds(t);
+
+  // Sample grid.
+  const SampleInfo& sample = session.rig.sample;
+  const double pitch = options.pitch_m > 0 ? options.pitch_m : sample.pixel_pitch_m;
+  if (!(pitch > 0)) return Status::Error(manifest + ": rig.sample.pixel_pitch_m is 0 and no pitch was given");
+  BoardGrid grid;
+  grid.grid_min_m = sample.region_min_m;
+  grid.pixel_pitch_m = pitch;
+  grid.width_px = static_cast<int>(std::floor((sample.region_max_m.x() - sample.region_min_m.x()) / pitch + 1e-6));
+  grid.height_px = static_cast<int>(std::floor((sample.region_max_m.y() - sample.region_min_m.y()) / pitch + 1e-6));
+  grid.plane_z_m = 0;
+  grid.supersample = options.supersample;
+  if (grid.width_px < 1 || grid.height_px < 1) return Status::Error(manifest + ": rig.sample region is empty");
+  const BoardRectifier rectifier(camera, grid);
+
+  slices->width = grid.width_px;
+  slices->height = grid.height_px;
+  slices->grid_min_m = grid.grid_min_m;
+  slices->pitch_m = pitch;
+  slices->dots_nx = nx;
+  slices->dots_ny = ny;
+  slices->dot_positions.clear();
+  for (const DotRecord& d : geometry.dots) slices->dot_positions.push_back(d.position_in_sample_m);
+  const double step_x = nx > 1 ? (*xs.rbegin() - *xs.begin()) / (nx - 1) : 1;
+  const double step_y = ny > 1 ? (*ys.rbegin() - *ys.begin()) / (ny - 1) : 1;
+  slices->dot_cell_area_m2 = step_x * step_y * Sqr(monitor.pixel_pitch_m);
+  const Eigen::Matrix3d r = camera.cam_from_sample.rotation.toRotationMatrix();
+  slices->camera_centre = -r.transpose() * camera.cam_from_sample.translation;
+  const int np = slices->num_points(), nd = static_cast<int>(displayed.size());
+  slices->value.assign(static_cast<size_t>(np) * nd, 0.0f);
+  slices->sigma.assign(static_cast<size_t>(np) * nd, 0.0f);
+  slices->train = InterleavedTrainMask(nx, ny, options.hold_out);
+  slices->point_status.assign(np, static_cast<uint8_t>(DmfStatus::kOk));
+  report->slice_bytes = (slices->value.size() + slices->sigma.size()) * sizeof(float);
+
+  // 2-3. One dot at a time: merge, rectify, Eq. 12.
+  t = std::chrono::steady_clock::now();
+  const auto darks = session.UsableFrames("dark", sample_state);
+  const double dot_area = kPi * Sqr(options.dot_radius_px * monitor.pixel_pitch_m);
+  std::vector<int> saturated_dots(np, 0);
+  int q = 0;
+  for (const auto& [yx, frames] : by_dot) {
+    HdrImage hdr;
+    SessionMergeInfo info;
+    THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, darks, nullptr,
+                                                 HdrMergeOptions(), 1.0, &hdr, &info)
+                                 .WithContext(DotName(displayed[q])));
+    report->num_frames += info.num_frames;
+    report->num_exposures = std::max(report->num_exposures, info.num_exposures);
+    const Image radiance = rectifier.Rectify(hdr.radiance);
+    const Image variance = rectifier.Rectify(hdr.variance);
+    const Image saturated = rectifier.RectifyAny(hdr.all_saturated);
+    const DotRecord& dot = geometry.dots[q];
+    const double l_q = dot.saturated ? median_radiance : dot.radiance_dn_per_us;
+    for (int p = 0; p < np; ++p) {
+      const int x = p % grid.width_px, y = p / grid.width_px;
+      const Eigen::Vector3d to_dot = dot.position_in_sample_m - slices->PointPosition(p);
+      const double dist2 = to_dot.squaredNorm();
+      const double cos2 = Sqr(to_dot.z()) / dist2;  // cos_e (z . i_q): monitor parallel to the sample.
+      const double scale = dist2 / (l_q * dot_area * cos2);
+      const size_t k = static_cast<size_t>(p) * nd + q;
+      slices->value[k] = static_cast<float>(std::max(0.0f, radiance.at(x, y)) * scale);
+      slices->sigma[k] = static_cast<float>(std::sqrt(std::max(0.0f, variance.at(x, y))) * scale);
+      if (saturated.at(x, y) > 0) ++saturated_dots[p];
+    }
+    ++q;
+  }
+  report->merge_s = Seconds(t);
+
+  for (int p = 0; p < np; ++p) {
+    const int x = p % grid.width_px, y = p / grid.width_px;
+    if (rectifier.outside().at(x, y) > 0) {
+      slices->point_status[p] = static_cast<uint8_t>(DmfStatus::kOutside);
+      ++report->outside_points;
+    } else if (saturated_dots[p] > options.max_saturated_dots * nd) {
+      slices->point_status[p] = static_cast<uint8_t>(DmfStatus::kSaturated);
+      ++report->saturated_points;
+    }
+  }
+  if (report->saturated_points > options.max_saturated_points * np) {
+    return Status::Error(session_dir + ": the dot frames saturate in every exposure at " +
+                         std::to_string(report->saturated_points) + " of " + std::to_string(np) +
+                         " sample points: the bracket needs a shorter exposure");
+  }
+  report->num_dots = nd;
+  report->grid_nx = nx;
+  report->grid_ny = ny;
+  report->dot_rms_residual_m = geometry.rms_residual_m;
+  report->median_dot_radiance = median_radiance;
+  report->total_s = Seconds(start);
+  return Status::Ok();
+}
+
+}  // namespace thinslab

@@ -1,0 +1,50 @@
+// SPDX-License-Identifier: Apache-2.0
+// Image processing of a CRT dot scan into BTDF slices (Dai et al. 2009, Sec. 4.1), streaming
+// one dot's exposure bracket at a time:
+//  1. dot geometry and radiance L_q from the all-dots frame taken without the sample
+//     (calib/dot_geometry.h: sub-pixel centroids back-projected to the monitor plane);
+//  2. per dot: HDR merge of its bracket with the dark bracket subtracted (calib/hdr_merge.h),
+//     rectified onto the sample grid with area weighting (calib/board_rectification.h);
+//  3. Eq. 12, with the emitter's cosine explicit (a monitor pixel of radiance L_q and area A
+//     has intensity L_q A cos_e towards the sample point):
+//        R(x, i_q, o) = I_q(x) r^2 / (L_q A cos_e (z . i_q)),
+//     the lighting direction i_q(x) = (p_q - x) / |p_q - x| and the view direction from x to
+//     the calibrated camera centre (per point, not one o_c for all: it costs nothing).
+// Only the slice matrix (points x dots floats) is kept in memory.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "calib/dot_geometry.h"
+#include "core/status.h"
+#include "fit/dmf_map_fit.h"
+
+namespace thinslab {
+
+struct DmfProcessingOptions {
+  double pitch_m = 0;          // Sample grid pitch; 0 = the manifest's sample pixel pitch.
+  double dot_radius_px = 2.0;  // Radius of a displayed dot [monitor px] (A of Eq. 12 and L_q).
+  bool hold_out = false;       // Hold out every other dot ((ix + iy) odd) from the fit.
+  // A point whose dot frames saturated in every exposure for more than this fraction of its
+  // in-lobe dots is flagged saturated; more than `max_saturated_points` of such points is an error.
+  double max_saturated_dots = 0.02;
+  double max_saturated_points = 0.5;
+  int supersample = 2;         // Rectification sub-samples per grid pixel and axis.
+  DotGeometryOptions dot_geometry;
+  bool Check(std::string* error) const;
+};
+
+struct DmfProcessingReport {
+  int num_dots = 0, grid_nx = 0, grid_ny = 0, num_frames = 0, num_exposures = 0;
+  double dot_rms_residual_m = 0;
+  double median_dot_radiance = 0;  // L_q [DN/us].
+  int saturated_points = 0, outside_points = 0;
+  double geometry_s = 0, merge_s = 0, total_s = 0;
+  size_t slice_bytes = 0;  // Memory of the slice matrix.
+};
+
+Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingOptions& options, DmfSliceSet* slices,
+                            DmfProcessingReport* report);
+
+}  // namespace thinslab
