@@ -18,6 +18,7 @@ int RunSim(int argc, char** argv);
 int RunFit(int argc, char** argv);
 int RunDemo(int argc, char** argv);
 int RunFitPhase(int argc, char** argv);
+int RunFitDmf(int argc, char** argv);  // app/dmf_commands.cc
 int RunSimLaser(int argc, char** argv);
 int RunCharts(int argc, char** argv);
 int RunAcquire(int argc, char** argv);  // app/acquire_commands.cc

@@ -149,8 +149,9 @@ void AddFitTauOptions(OptionParser* parser, FitTauRun* run) {
 int RunFit(int argc, char** argv) {
   const std::string what = argc > 0 ? argv[0] : "";
   if (what == "phase") return RunFitPhase(argc - 1, argv + 1);
+  if (what == "dmf") return RunFitDmf(argc - 1, argv + 1);
   if (what != "tau") {
-    std::cerr << "usage: thinslab fit tau CAPTURE [options] | thinslab fit phase CAPTURE [options]\n";
+    std::cerr << "usage: thinslab fit tau|phase|dmf CAPTURE [options]\n";
     return what.empty() || what == "--help" ? 0 : 2;
   }
   FitTauRun run;

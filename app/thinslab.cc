@@ -33,7 +33,7 @@ const std::vector<Command>& Commands() {
       {"acquire", thinslab::RunAcquire, "run a capture session on a rig (default: the simulated rig)"},
       {"sim", thinslab::RunSim, "simulate a capture session (sim shadow-maps | sim laser | sim pattern)"},
       {"calib", thinslab::RunCalib, "calibrate camera, response, HDR, dots, flat field"},
-      {"fit", thinslab::RunFit, "fit a model to a capture (fit tau | fit phase)"},
+      {"fit", thinslab::RunFit, "fit a model to a capture (fit tau | phase | dmf)"},
       {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy"},
       {"synth", thinslab::RunSynth, "synthesize contamination layers from measured prototypes"},
       {"charts", thinslab::RunCharts, "model-vs-Monte-Carlo charts of the optics models (docs/models)"},
