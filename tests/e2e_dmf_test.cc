@@ -8,7 +8,9 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 
 #include "core/math.h"
 #include "fit/dmf_map_fit.h"
@@ -188,6 +190,84 @@ TEST_F(DmfEndToEnd, ClusteredFitStaysCloseToUnclustered) {
   EXPECT_LT(Median(clustered), Median(unclustered) + 0.05);
   const Image image = maps.ToImage();
   for (float v : image.data()) ASSERT_TRUE(std::isfinite(v));
+}
+
+}  // namespace
+}  // namespace thinslab
+
+namespace thinslab {
+namespace {
+
+// Bad input: each case a clear error naming what is wrong, never a partial or NaN map.
+class DmfBadInput : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = (std::filesystem::temp_directory_path() /
+            ("thinslab_dmf_bad_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name())))
+               .string();
+    std::filesystem::remove_all(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  Status Process(const SyntheticDotScanOptions& sim) {
+    const Status s = SynthesizeDotScanSession(sim, dir_);
+    if (!s.ok()) return s;
+    return Prepare();
+  }
+  Status Prepare() {
+    DmfSliceSet slices;
+    DmfProcessingReport report;
+    DmfProcessingOptions options;
+    options.pitch_m = 0.008;
+    return PrepareDotScanSlices(dir_, options, &slices, &report);
+  }
+  static SyntheticDotScanOptions Small() {
+    SyntheticDotScanOptions sim;
+    sim.session.grid_nx = 6;
+    sim.session.grid_ny = 6;
+    sim.sample.photons_per_region = 20000;
+    return sim;
+  }
+  std::string dir_;
+};
+
+TEST_F(DmfBadInput, TooFewDots) {
+  SyntheticDotScanOptions sim = Small();
+  sim.session.grid_nx = 3;
+  sim.session.grid_ny = 3;
+  const Status s = Process(sim);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("at least 4 x 4"), std::string::npos) << s.message();
+}
+
+TEST_F(DmfBadInput, DotPositionsMissing) {
+  ASSERT_TRUE(SynthesizeDotScanSession(Small(), dir_).ok());
+  const std::string manifest = dir_ + "/session.json";
+  std::ifstream in(manifest);
+  nlohmann::json j = nlohmann::json::parse(in);
+  in.close();
+  for (auto& f : j["frames"]) {
+    if (f["kind"] == "dot" && f.contains("light")) f["light"].erase("dot_px");
+  }
+  std::ofstream(manifest) << j.dump(1);
+  const Status s = Prepare();
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("dot_px"), std::string::npos) << s.message();
+}
+
+TEST_F(DmfBadInput, NoAllDotsFrame) {
+  SyntheticDotScanOptions sim = Small();
+  sim.session.capture_all_dots = false;
+  const Status s = Process(sim);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("all_dots"), std::string::npos) << s.message();
+}
+
+TEST_F(DmfBadInput, SaturatedStack) {
+  SyntheticDotScanOptions sim = Small();
+  sim.rig.dot_radiance *= 1000;  // Every exposure of the bracket saturates.
+  const Status s = Process(sim);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("saturat"), std::string::npos) << s.message();
 }
 
 }  // namespace
