@@ -261,6 +261,7 @@ bool DmfPointFitOptions::Check(std::string* error) const {
   else if (!(min_relative_value > 0 && min_relative_value < 1))
     e << "min_relative_value must be in (0, 1), got " << min_relative_value;
   else if (min_measurements < 3) e << "min_measurements must be >= 3, got " << min_measurements;
+  else if (min_core_measurements < 1) e << "min_core_measurements must be >= 1, got " << min_core_measurements;
   *error = e.str();
   return error->empty();
 }
@@ -308,7 +309,6 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   DmfPointFit fit;
   fit.rho_d = slice.rho_d;
   fit.smith_alpha = options.initial_smith_alpha;
-  fit.log_ndf.assign(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
 
   // Usable training measurements: above the noise floor and the relative threshold, with both
   // virtual configurations transmitting.
@@ -354,7 +354,8 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
     rows.push_back(r);
   }
   fit.num_used = static_cast<int>(rows.size());
-  if (static_cast<int>(rows.size()) < options.min_measurements) {
+  const int core = static_cast<int>(std::count_if(rows.begin(), rows.end(), [](const Row& r) { return r.in_core; }));
+  if (static_cast<int>(rows.size()) < options.min_measurements || core < options.min_core_measurements) {
     fit.status = significant == 0 ? DmfStatus::kNoLobe : DmfStatus::kSpecular;
     return fit;
   }
@@ -398,6 +399,7 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   // k_s: the level D absorbed (Eq. 13), D normalised to unit projected area.
   fit.k_s = grid.ProjectedIntegral(log_d);
   const double log_k = std::log(fit.k_s);
+  fit.log_ndf.assign(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
   for (int cell = 0; cell < grid.num_cells(); ++cell) {
     fit.log_ndf[cell] = grid.InDisk(cell) ? log_d[cell] - log_k : DmfNdfGrid::kLogEpsilon;
   }

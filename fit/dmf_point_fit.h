@@ -48,7 +48,8 @@ struct DmfSlice {
 enum class DmfStatus : uint8_t {
   kOk = 0,
   kNoLobe = 1,        // Fewer than min_measurements training dots above the noise floor.
-  kSpecular = 2,      // Lobe narrower than the dot spacing: NDF unresolved (alpha unknown).
+  kSpecular = 2,      // Lobe narrower than the dot spacing (fewer than min_core_measurements dots
+                      // in its core): NDF unresolved.
   kSaturated = 3,     // Too many of the point's dot measurements saturated.
   kOutside = 4,       // Point not seen by the camera or off the sample.
   kNotConverged = 5,  // alpha still moving after max_alpha_iterations (result kept).
@@ -74,6 +75,9 @@ struct DmfPointFitOptions {
   // bounces (seen in the photon tracer), which the two virtual configurations do not model and
   // which would pull alpha towards the middle.
   double alpha_lobe_fraction = 0.3;
+  // Fewer training dots than this inside the lobe core: the lobe is narrower than the dot
+  // spacing (a smooth face), status kSpecular.
+  int min_core_measurements = 3;
   int min_measurements = 8;        // Fewer usable training dots: status kNoLobe or kSpecular.
   bool Check(std::string* error) const;
 };
@@ -84,7 +88,7 @@ struct DmfPointFit {
   double smith_alpha = 0.2;  // Roughness of the Smith shadowing term.
   double k_s = 0;            // Eq. 13 scale [unitless]: integral of the unnormalised D.
   double rho_d = 0;          // [1/sr], copied from the slice.
-  std::vector<double> log_ndf;  // ln D per cell (N*N, D normalised: projected integral 1).
+  std::vector<double> log_ndf;  // ln D per cell (N*N, D normalised: projected integral 1); empty if not fitted.
   int alpha_iterations = 0;
   int num_used = 0;             // Training measurements in Eq. 16.
   double log_rms_residual = 0;  // RMS of the Eq. 15 residuals in ln units at the solution.

@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include <sstream>
 #include <string>
 
+#include "core/exr_io.h"
 #include "core/image.h"
 #include "core/session_io.h"
 #include "tests/testing/temp_dir.h"
@@ -273,6 +275,34 @@ TEST_F(LaserCliTest, BoardGeometryMissing) {
   j["rig"].erase("board");
   WriteManifest(session, j);
   ExpectPhaseFails(session, {"session.json", "rig.board"});
+}
+
+// thinslab fit dmf end to end through the CLI: outputs written, every map value finite; a
+// capture that is not a dot scan and an impossible option are refused with a message.
+TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
+  TempDir dir;
+  const std::string scan = dir / "scan";
+  const RunResult sim = RunThinslab("sim dot-scan " + scan + " --grid-nx 8 --grid-ny 8 --photons-k 40");
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  const RunResult fit = RunThinslab("fit dmf " + scan + " --pitch-mm 8 --cluster-fraction 0.2");
+  ASSERT_EQ(fit.exit_code, 0) << fit.output;
+  for (const char* file : {"maps.exr", "ndf_atlas.exr", "alpha_falsecolor.png", "summary.json", "summary.txt",
+                           "options.ini"}) {
+    EXPECT_TRUE(std::filesystem::exists(scan + "/fit/dmf/" + file)) << file;
+  }
+  Image maps;
+  ASSERT_TRUE(ReadExr(scan + "/fit/dmf/maps.exr", &maps).ok());
+  EXPECT_EQ(maps.num_channels(), 6);
+  for (float v : maps.data()) ASSERT_TRUE(std::isfinite(v));
+
+  const RunResult bad_option = RunThinslab("fit dmf " + scan + " --ndf-resolution 2 --out " + (dir / "x"));
+  EXPECT_EQ(bad_option.exit_code, 1);
+  EXPECT_NE(bad_option.output.find("ndf_resolution"), std::string::npos) << bad_option.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "x"));
+
+  const RunResult missing = RunThinslab("fit dmf " + (dir / "nothing_here"));
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.output.find("nothing_here"), std::string::npos) << missing.output;
 }
 
 }  // namespace

@@ -156,9 +156,14 @@ TEST_F(DmfEndToEnd, UnclusteredFitRecoversRegions) {
     EXPECT_LT(Median(stats.at(name).held_out), 0.8 * Median(stats.at(name).held_out_ggx)) << name;
   }
   // The smooth region has no resolvable lobe: it says so instead of inventing an NDF.
-  int smooth_fitted = 0;
-  for (int p : stats.at("smooth").points) smooth_fitted += maps.fits[p].status == DmfStatus::kOk;
-  EXPECT_LT(smooth_fitted, static_cast<int>(stats.at("smooth").points.size()) / 2);
+  int smooth_flagged = 0;
+  for (int p : stats.at("smooth").points) {
+    const DmfStatus status = maps.fits[p].status;
+    smooth_flagged += status == DmfStatus::kSpecular || status == DmfStatus::kNoLobe;
+  }
+  std::printf("smooth region: %d of %zu points flagged specular or no lobe\n", smooth_flagged,
+              stats.at("smooth").points.size());
+  EXPECT_GT(smooth_flagged, static_cast<int>(stats.at("smooth").points.size()) * 3 / 4);
   // No NaN anywhere.
   const Image image = maps.ToImage();
   for (float v : image.data()) ASSERT_TRUE(std::isfinite(v));
