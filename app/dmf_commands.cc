@@ -5,11 +5,11 @@
 //   ndf_atlas.exr    channel D: the N x N NDF tile of every atlas_stride-th point
 //   *_falsecolor.png the maps; ndf_<col>_<row>.png the NDF at chosen points (Dai Fig. 6)
 //   summary.json/.txt timings per stage, status counts, peak memory; options.ini
+//   comparison.json  per-region accuracy when the capture has ground_truth/truth.json (sim)
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <iostream>
 #include <sstream>
 
@@ -18,23 +18,15 @@
 #include "core/exr_io.h"
 #include "core/false_color.h"
 #include "core/file.h"
+#include "core/memory.h"
 #include "core/session_io.h"
 #include "core/version.h"
+#include "fit/dmf_evaluation.h"
 #include "fit/dmf_map_fit.h"
 #include "fit/dmf_processing.h"
 
 namespace thinslab {
 namespace {
-
-// Peak resident set size of this process [MiB] (VmHWM), 0 if unknown.
-double PeakMemoryMiB() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
-  }
-  return 0;
-}
 
 Status ParsePixels(const std::string& text, std::vector<std::pair<int, int>>* pixels) {
   std::stringstream list(text);
@@ -87,6 +79,11 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     for (int k = 1; k <= 3; ++k) pixels.emplace_back(k * maps.width / 4, k * maps.height / 4);
   }
 
+  // Simulated captures carry their ground truth: compare per region.
+  std::vector<DmfTruthRegion> truth;
+  const bool has_truth = FileExists(JoinPath(JoinPath(session_dir, "ground_truth"), "truth.json"));
+  if (has_truth) THINSLAB_RETURN_IF_ERROR(ReadDmfTruth(session_dir, &truth));
+
   const auto write_start = std::chrono::steady_clock::now();
   StagedDirectory out(out_dir);
   THINSLAB_RETURN_IF_ERROR(out.Init());
@@ -136,22 +133,44 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), std::string(pic.name) + "_falsecolor.png"), image,
                                                 pic.channel, &unfitted, color));
   }
+  // NDF pictures (Dai Fig. 6): fitted on the left; the true face NDF on the right where the
+  // capture has ground truth and the point's region has one rough face.
   for (const auto& [x, y] : pixels) {
     const DmfPointFit& f = maps.fits[y * maps.width + x];
-    Image ndf(n, n);
+    const Eigen::Vector3d point = slices.PointPosition(y * maps.width + x);
+    const DmfTruthFace* face = nullptr;
+    for (const DmfTruthRegion& r : truth) {
+      if (point.x() >= r.min_m.x() && point.x() < r.max_m.x() && point.y() >= r.min_m.y() && point.y() < r.max_m.y()) {
+        face = r.SingleRoughFace();
+      }
+    }
+    const DmfNdfGrid grid(n);
+    Image ndf(face ? 2 * n + 2 : n, n);
     double peak = 0;
-    for (int cell = 0; cell < n * n && !f.log_ndf.empty(); ++cell) {
-      ndf.data()[cell] = static_cast<float>(std::exp(f.log_ndf[cell]));
-      peak = std::max(peak, static_cast<double>(ndf.data()[cell]));
+    for (int cell = 0; cell < n * n; ++cell) {
+      const float fitted = f.log_ndf.empty() ? 0.f : static_cast<float>(std::exp(f.log_ndf[cell]));
+      ndf.at(cell % n, cell / n) = fitted;
+      peak = std::max(peak, static_cast<double>(fitted));
+      if (face && grid.InDisk(cell)) {
+        const double hx = grid.CellCentre(cell % n), hy = grid.CellCentre(cell / n);
+        const double t = TrueNdf(*face, Eigen::Vector3d(hx, hy, std::sqrt(std::max(0.0, 1 - hx * hx - hy * hy))));
+        ndf.at(n + 2 + cell % n, cell / n) = static_cast<float>(t);
+        peak = std::max(peak, t);
+      }
     }
     FalseColorOptions color;
-    color.label = "D at (" + std::to_string(x) + ", " + std::to_string(y) + ")";
+    color.label = std::string(face ? "D fitted | true" : "D") + " at (" + std::to_string(x) + ", " + std::to_string(y) + ")";
     color.max_value = peak > 0 ? peak : 1;
     color.scale = std::max(1, 256 / n);
     THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(
         JoinPath(out.path(), "ndf_" + std::to_string(x) + "_" + std::to_string(y) + ".png"), ndf, 0, nullptr, color));
   }
 
+  std::vector<DmfRegionAccuracy> accuracy;
+  if (has_truth) {
+    accuracy = CompareDmfWithTruth(slices, maps, truth);
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "comparison.json"), DmfComparisonJson(accuracy)));
+  }
   std::map<std::string, int> counts;
   for (const DmfPointFit& f : maps.fits) ++counts[DmfStatusName(f.status)];
   const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - write_start).count();
@@ -168,7 +187,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["status_counts"] = counts;
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
   j["slice_memory_bytes"] = processing.slice_bytes;
-  j["peak_memory_mib"] = PeakMemoryMiB();
+  j["peak_memory_mib"] = PeakResidentMemoryMiB();
   j["timings_s"] = {{"dot_geometry", processing.geometry_s},
                     {"hdr_merge_rectify_eq12", processing.merge_s},
                     {"processing_total", processing.total_s},
@@ -192,7 +211,17 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   txt << "time: processing " << processing.total_s << " s (dots " << processing.geometry_s << " s, HDR/Eq. 12 "
       << processing.merge_s << " s), fit " << maps.timings.total_s << " s (clustering " << maps.timings.clustering_s
       << " s, model " << maps.timings.representative_fit_s << " s, interpolation " << maps.timings.interpolation_s
-      << " s), writing " << write_s << " s; peak memory " << PeakMemoryMiB() << " MiB\n";
+      << " s), writing " << write_s << " s; peak memory " << PeakResidentMemoryMiB() << " MiB\n";
+  if (has_truth) {
+    txt << "against ground truth (medians per region; NDF L2 on one-sided regions, held-out with --hold-out):\n";
+    for (const DmfRegionAccuracy& a : accuracy) {
+      txt << "  " << a.name << ": " << a.fitted << "/" << a.points << " fitted, alpha " << a.median_alpha;
+      if (a.median_ndf_l2 >= 0) txt << ", NDF L2 " << a.median_ndf_l2;
+      if (a.median_held_out >= 0) txt << ", held-out " << a.median_held_out;
+      txt << ", k_s " << a.median_k_s << " (true " << a.true_k_s << "), rho_d " << a.median_rho_d << " (true "
+          << a.true_rho_d << ")\n";
+    }
+  }
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), j.dump(2) + "\n"));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), txt.str()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));

@@ -120,6 +120,9 @@ int RunSimPattern(int argc, char** argv) {
 // (sim/synthesize_dot_scan_session.h, docs/models/dot_scan_rig.md).
 int RunSimDotScan(int argc, char** argv) {
   SyntheticDotScanOptions options;
+  // The paper's scan (Dai et al. Table 1: 40 x 40 dots); the C++ defaults are test-sized.
+  options.session.grid_nx = 40;
+  options.session.grid_ny = 40;
   std::string out_dir, exposures;
   int photons_k = static_cast<int>(options.sample.photons_per_region / 1000);
   OptionParser parser("sim dot-scan");

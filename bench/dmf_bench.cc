@@ -13,26 +13,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <string>
 #include <vector>
 
+#include "core/memory.h"
 #include "fit/dmf_map_fit.h"
 #include "fit/dmf_processing.h"
 #include "sim/synthesize_dot_scan_session.h"
-
-namespace {
-
-double PeakMemoryMiB() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
-  }
-  return 0;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   using namespace thinslab;
@@ -95,7 +82,7 @@ int main(int argc, char** argv) {
                 slices.num_dots(), camera_width, fraction, maps.num_fitted, report.total_s, report.geometry_s,
                 report.merge_s, maps.timings.clustering_s, maps.timings.representative_fit_s,
                 maps.timings.interpolation_s, maps.timings.total_s, report.total_s + maps.timings.total_s, median,
-                report.slice_bytes / 1048576.0, PeakMemoryMiB());
+                report.slice_bytes / 1048576.0, PeakResidentMemoryMiB());
     std::fflush(stdout);
   }
   std::filesystem::remove_all(dir);

@@ -27,7 +27,9 @@ namespace thinslab {
 
 struct DmfClusteringOptions {
   double fraction = 0.01;      // Representatives per point (Dai: 1 %).
-  int min_representatives = 4;
+  // At least this many (capped at the point count): 1 % of a small grid is too few to cover
+  // its materials (16 representatives for 40 x 40 points smeared nine regions together).
+  int min_representatives = 64;
   int pca_dims = 24;
   int kmeans_iterations = 15;
   int subsample = 20000;       // Points used to place the centres.

@@ -37,40 +37,27 @@ double FitLogScale(const DmfSlice& slice, const DmfPointFit& shape, const DmfNdf
   DmfPointFit unit = shape;
   unit.k_s = 1;
   unit.rho_d = 0;
-  double peak = 0;
-  for (int q = 0; q < slice.num_dots(); ++q) {
-    if (slice.train[q]) peak = std::max(peak, slice.value[q] - slice.rho_d);
-  }
   double sum = 0;
   int n = 0;
-  for (int q = 0; q < slice.num_dots(); ++q) {
-    if (!slice.train[q]) continue;
-    const double v = slice.value[q] - slice.rho_d;
-    const double sigma = slice.sigma.empty() ? 0 : slice.sigma[q];
-    if (!(v > options.noise_sigmas * sigma) || !(v > options.min_relative_value * peak)) continue;
+  for (int q : UsableTrainingDots(slice, options)) {
     const double pred = PredictDualMicrofacet(unit, grid, options.eta, slice.i[q], slice.o);
     if (!(pred > 0)) continue;
-    sum += std::log(v / pred);
+    sum += std::log((slice.value[q] - slice.rho_d) / pred);
     ++n;
   }
   *used = n;
   return n > 0 ? sum / n : 0;
 }
 
+// RMS of the Eq. 15 log residuals over the usable training dots.
 double LogRmsResidual(const DmfSlice& slice, const DmfPointFit& fit, const DmfNdfGrid& grid,
                       const DmfPointFitOptions& options) {
-  double peak = 0;
-  for (int q = 0; q < slice.num_dots(); ++q) {
-    if (slice.train[q]) peak = std::max(peak, slice.value[q] - slice.rho_d);
-  }
   double sum = 0;
   int n = 0;
-  for (int q = 0; q < slice.num_dots(); ++q) {
-    const double v = slice.value[q] - slice.rho_d;
-    if (!slice.train[q] || !(v > options.min_relative_value * peak)) continue;
+  for (int q : UsableTrainingDots(slice, options)) {
     const double pred = PredictDualMicrofacet(fit, grid, options.eta, slice.i[q], slice.o) - fit.rho_d;
     if (!(pred > 0)) continue;
-    sum += Sqr(std::log(v / pred));
+    sum += Sqr(std::log((slice.value[q] - slice.rho_d) / pred));
     ++n;
   }
   return n > 0 ? std::sqrt(sum / n) : 0;
@@ -189,12 +176,13 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     const DmfSlice slice = slices.Slice(p);
     rho_d[p] = slice.rho_d;
     maps->fits[p].rho_d = slice.rho_d;
-    double sum = 0;
-    for (int q : train_dots) sum += std::max(0.0, slice.value[q] - slice.rho_d);
-    if (!(sum > 0)) {
-      maps->fits[p].status = DmfStatus::kNoLobe;
+    const DmfStatus precheck = PrecheckSlice(slice, options.point);
+    if (precheck != DmfStatus::kOk) {
+      maps->fits[p].status = precheck;
       return;
     }
+    double sum = 0;
+    for (int q : train_dots) sum += std::max(0.0, slice.value[q] - slice.rho_d);
     fit_me[p] = 1;
     if (options.cluster) {
       for (size_t k = 0; k < train_dots.size(); ++k) {

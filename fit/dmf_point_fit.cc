@@ -304,29 +304,55 @@ double EstimateDiffuse(const DmfSlice& slice, int nx, int ny, double fraction) {
   return std::max(0.0, best);
 }
 
+double TrainingPeak(const DmfSlice& slice) {
+  double peak = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (slice.train[q]) peak = std::max(peak, slice.value[q] - slice.rho_d);
+  }
+  return peak;
+}
+
+std::vector<int> UsableTrainingDots(const DmfSlice& slice, const DmfPointFitOptions& options) {
+  const double peak = TrainingPeak(slice);
+  std::vector<int> usable;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (!slice.train[q]) continue;
+    const double v = slice.value[q] - slice.rho_d;
+    const double sigma = slice.sigma.empty() ? 0 : slice.sigma[q];
+    if (v > options.noise_sigmas * sigma && v > options.min_relative_value * peak) usable.push_back(q);
+  }
+  return usable;
+}
+
+DmfStatus PrecheckSlice(const DmfSlice& slice, const DmfPointFitOptions& options) {
+  const std::vector<int> usable = UsableTrainingDots(slice, options);
+  if (usable.empty()) return DmfStatus::kNoLobe;
+  const double peak = TrainingPeak(slice);
+  const int core = static_cast<int>(std::count_if(usable.begin(), usable.end(), [&](int q) {
+    return slice.value[q] - slice.rho_d > options.alpha_lobe_fraction * peak;
+  }));
+  if (static_cast<int>(usable.size()) < options.min_measurements || core < options.min_core_measurements) {
+    return DmfStatus::kSpecular;
+  }
+  return DmfStatus::kOk;
+}
+
 DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid, const DmfPointFitOptions& options) {
   CHECK_EQ(grid.n(), options.ndf_resolution);
   DmfPointFit fit;
   fit.rho_d = slice.rho_d;
   fit.smith_alpha = options.initial_smith_alpha;
 
-  // Usable training measurements: above the noise floor and the relative threshold, with both
-  // virtual configurations transmitting.
-  double peak = 0;
-  for (int q = 0; q < slice.num_dots(); ++q) {
-    if (slice.train[q]) peak = std::max(peak, slice.value[q] - slice.rho_d);
-  }
+  // Usable training measurements (UsableTrainingDots) with both virtual configurations
+  // transmitting.
+  const double peak = TrainingPeak(slice);
+  const std::vector<int> usable = UsableTrainingDots(slice, options);
   const UnitBtdf unit(UnitNdf{}, UnitShadowing{}, options.eta);
   std::vector<Row> rows;
   Eigen::Vector3d measured_mean = Eigen::Vector3d::Zero();
   double measured_total = 0;
-  int significant = 0;
-  for (int q = 0; q < slice.num_dots(); ++q) {
-    if (!slice.train[q]) continue;
+  for (int q : usable) {
     const double v = slice.value[q] - slice.rho_d;
-    const double sigma = slice.sigma.empty() ? 0 : slice.sigma[q];
-    if (!(v > options.noise_sigmas * sigma) || !(v > options.min_relative_value * peak)) continue;
-    ++significant;
     const Eigen::Vector3d& i = slice.i[q];
     const Eigen::Vector3d& o = slice.o;
     const double a_top = unit.EvalTop(i, o), a_bottom = unit.EvalBottom(i, o);
@@ -356,7 +382,7 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   fit.num_used = static_cast<int>(rows.size());
   const int core = static_cast<int>(std::count_if(rows.begin(), rows.end(), [](const Row& r) { return r.in_core; }));
   if (static_cast<int>(rows.size()) < options.min_measurements || core < options.min_core_measurements) {
-    fit.status = significant == 0 ? DmfStatus::kNoLobe : DmfStatus::kSpecular;
+    fit.status = usable.empty() ? DmfStatus::kNoLobe : DmfStatus::kSpecular;
     return fit;
   }
   measured_mean /= measured_total;

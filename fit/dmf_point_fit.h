@@ -100,6 +100,18 @@ struct DmfPointFit {
 // neighbourhood (candidates only). `fraction` is Dai's 0.05. 0 when no dot qualifies.
 double EstimateDiffuse(const DmfSlice& slice, int nx, int ny, double fraction = 0.05);
 
+// Largest R - rho_d over the training dots.
+double TrainingPeak(const DmfSlice& slice);
+// Training dots whose R - rho_d can enter the logarithms of Eqs. 15-16: above
+// min_relative_value of the training peak and noise_sigmas standard deviations.
+std::vector<int> UsableTrainingDots(const DmfSlice& slice, const DmfPointFitOptions& options);
+
+// What FitDualMicrofacetPoint would say before fitting: kNoLobe without usable training dots,
+// kSpecular with fewer than min_measurements usable dots or min_core_measurements in the lobe
+// core, else kOk. Cheap: the clustered map fit uses it so that unresolvable points keep their
+// own status instead of borrowing a neighbour's NDF.
+DmfStatus PrecheckSlice(const DmfSlice& slice, const DmfPointFitOptions& options);
+
 // Fits one slice. `grid` must have options.ndf_resolution.
 DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid, const DmfPointFitOptions& options);
 

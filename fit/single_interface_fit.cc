@@ -35,16 +35,7 @@ struct SingleInterfaceResidual {
 SingleInterfaceFit FitSingleInterfaceGgx(const DmfSlice& slice, const DmfPointFitOptions& options) {
   SingleInterfaceFit best;
   best.rho_d = slice.rho_d;
-  double peak = 0;
-  for (int q = 0; q < slice.num_dots(); ++q) {
-    if (slice.train[q]) peak = std::max(peak, slice.value[q] - slice.rho_d);
-  }
-  std::vector<int> used;
-  for (int q = 0; q < slice.num_dots(); ++q) {
-    const double v = slice.value[q] - slice.rho_d;
-    const double sigma = slice.sigma.empty() ? 0 : slice.sigma[q];
-    if (slice.train[q] && v > options.noise_sigmas * sigma && v > options.min_relative_value * peak) used.push_back(q);
-  }
+  const std::vector<int> used = UsableTrainingDots(slice, options);
   if (static_cast<int>(used.size()) < options.min_measurements) return best;
   double best_cost = 1e300;
   for (bool rough_top : {true, false}) {

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/math.h"
+#include "fit/dmf_evaluation.h"
 #include "fit/dmf_map_fit.h"
 #include "fit/dmf_processing.h"
 #include "fit/single_interface_fit.h"
@@ -26,23 +27,6 @@ double Median(std::vector<double> v) {
   if (v.empty()) return -1;
   std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
   return v[v.size() / 2];
-}
-
-// Relative L2 distance over the disk between a fitted NDF and the region's true face NDF.
-double NdfRelativeL2(const DmfPointFit& fit, const DmfNdfGrid& grid, const SlabFace& face) {
-  double num = 0, den = 0;
-  const GgxDistribution ggx(face.alpha_x, face.alpha_y);
-  const BeckmannDistribution beckmann(face.alpha_x, face.alpha_y);
-  for (int cell = 0; cell < grid.num_cells(); ++cell) {
-    if (!grid.InDisk(cell)) continue;
-    const double x = grid.CellCentre(cell % grid.n()), y = grid.CellCentre(cell / grid.n());
-    // The NDF grid lives in the optical frame (y flipped): the true NDF is symmetric in y.
-    const Eigen::Vector3d m(x, y, std::sqrt(std::max(0.0, 1 - x * x - y * y)));
-    const double t = face.ndf == RoughSlabNdf::kGgx ? ggx.D(m) : beckmann.D(m);
-    num += Sqr(std::exp(fit.log_ndf[cell]) - t);
-    den += t * t;
-  }
-  return std::sqrt(num / den);
 }
 
 struct RegionStats {
@@ -100,7 +84,11 @@ class DmfEndToEnd : public ::testing::Test {
       if (f.log_ndf.empty()) continue;
       s.alpha.push_back(f.alpha);
       const SlabFace& rough = r.material.bottom.IsFlat() ? r.material.top : r.material.bottom;
-      if (r.material.top.IsFlat() != r.material.bottom.IsFlat()) s.ndf_error.push_back(NdfRelativeL2(f, grid, rough));
+      if (r.material.top.IsFlat() != r.material.bottom.IsFlat()) {
+        const DmfTruthFace face{rough.ndf == RoughSlabNdf::kGgx ? "ggx" : "beckmann", rough.alpha_x, rough.alpha_y,
+                                false};
+        s.ndf_error.push_back(NdfRelativeL2(f, grid, face));
+      }
       s.held_out.push_back(DmfHeldOutError(*slices_, maps, p));
       if (with_ggx) {
         const DmfSlice slice = slices_->Slice(p);
@@ -137,6 +125,16 @@ TEST_F(DmfEndToEnd, UnclusteredFitRecoversRegions) {
     std::printf("%-14s points %3zu fitted %3zu alpha %.3f ndf L2 %.3f held-out %.3f ggx held-out %.3f\n", name.c_str(),
                 st.points.size(), st.alpha.size(), Median(st.alpha), Median(st.ndf_error), Median(st.held_out),
                 Median(st.held_out_ggx));
+  }
+  // The library comparison (what `thinslab fit dmf` writes to comparison.json) reads the same
+  // regions from ground_truth/truth.json.
+  std::vector<DmfTruthRegion> truth;
+  ASSERT_TRUE(ReadDmfTruth(*dir_, &truth).ok());
+  for (const DmfRegionAccuracy& a : CompareDmfWithTruth(*slices_, maps, truth)) {
+    EXPECT_EQ(a.fitted, static_cast<int>(stats.at(a.name).alpha.size())) << a.name;
+    if (a.fitted > 0) {
+      EXPECT_DOUBLE_EQ(a.median_alpha, Median(stats.at(a.name).alpha)) << a.name;
+    }
   }
   // Dai Sec. 3: alpha near 1 for a rough top, near 0 for a rough bottom.
   for (const char* name : {"ggx_top", "beckmann_top", "ggx_aniso_top"}) EXPECT_GE(Median(stats.at(name).alpha), 0.8) << name;

@@ -1,0 +1,148 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "fit/dmf_evaluation.h"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/file.h"
+#include "core/math.h"
+#include "optics/microfacet.h"
+
+namespace thinslab {
+namespace {
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return -1;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+Status ReadFace(const nlohmann::json& j, const std::string& where, DmfTruthFace* face) {
+  if (!j.is_object() || !j.contains("ndf") || !j.contains("alpha_x") || !j.contains("alpha_y") ||
+      !j.contains("flat")) {
+    return Status::Error(where + ": needs ndf, alpha_x, alpha_y, flat");
+  }
+  face->ndf = j["ndf"].get<std::string>();
+  if (face->ndf != "ggx" && face->ndf != "beckmann") return Status::Error(where + ".ndf: '" + face->ndf + "' unknown");
+  face->alpha_x = j["alpha_x"].get<double>();
+  face->alpha_y = j["alpha_y"].get<double>();
+  face->flat = j["flat"].get<bool>();
+  return Status::Ok();
+}
+
+}  // namespace
+
+const DmfTruthFace* DmfTruthRegion::SingleRoughFace() const {
+  if (top.flat == bottom.flat) return nullptr;
+  return top.flat ? &bottom : &top;
+}
+
+Status ReadDmfTruth(const std::string& session_dir, std::vector<DmfTruthRegion>* regions) {
+  const std::string path = JoinPath(JoinPath(session_dir, "ground_truth"), "truth.json");
+  std::string text;
+  THINSLAB_RETURN_IF_ERROR(ReadFileToString(path, &text));
+  regions->clear();
+  try {
+    const nlohmann::json j = nlohmann::json::parse(text);
+    if (!j.contains("regions") || !j["regions"].is_array()) return Status::Error(path + ": regions missing");
+    for (size_t k = 0; k < j["regions"].size(); ++k) {
+      const nlohmann::json& r = j["regions"][k];
+      const std::string where = path + ": regions[" + std::to_string(k) + "]";
+      DmfTruthRegion region;
+      region.name = r.at("name").get<std::string>();
+      region.min_m = Eigen::Vector2d(r.at("min_m")[0].get<double>(), r.at("min_m")[1].get<double>());
+      region.max_m = Eigen::Vector2d(r.at("max_m")[0].get<double>(), r.at("max_m")[1].get<double>());
+      THINSLAB_RETURN_IF_ERROR(ReadFace(r.at("top"), where + ".top", &region.top));
+      THINSLAB_RETURN_IF_ERROR(ReadFace(r.at("bottom"), where + ".bottom", &region.bottom));
+      region.rho_d = r.at("rho_d").get<double>();
+      region.k_s = r.at("k_s").get<double>();
+      regions->push_back(region);
+    }
+  } catch (const nlohmann::json::exception& e) {
+    return Status::Error(path + ": " + e.what());
+  }
+  return Status::Ok();
+}
+
+double TrueNdf(const DmfTruthFace& face, const Eigen::Vector3d& m) {
+  if (face.ndf == "beckmann") return BeckmannDistribution(face.alpha_x, face.alpha_y).D(m);
+  return GgxDistribution(face.alpha_x, face.alpha_y).D(m);
+}
+
+double NdfRelativeL2(const DmfPointFit& fit, const DmfNdfGrid& grid, const DmfTruthFace& face) {
+  if (fit.log_ndf.empty()) return -1;
+  double num = 0, den = 0;
+  for (int cell = 0; cell < grid.num_cells(); ++cell) {
+    if (!grid.InDisk(cell)) continue;
+    const double x = grid.CellCentre(cell % grid.n()), y = grid.CellCentre(cell / grid.n());
+    const Eigen::Vector3d m(x, y, std::sqrt(std::max(0.0, 1 - x * x - y * y)));
+    const double t = TrueNdf(face, m);
+    num += Sqr(std::exp(fit.log_ndf[cell]) - t);
+    den += t * t;
+  }
+  return den > 0 ? std::sqrt(num / den) : -1;
+}
+
+std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps,
+                                                   const std::vector<DmfTruthRegion>& regions) {
+  const DmfNdfGrid grid(maps.ndf_resolution);
+  const bool held_out = std::any_of(slices.train.begin(), slices.train.end(), [](uint8_t t) { return t == 0; });
+  std::vector<DmfRegionAccuracy> out;
+  for (const DmfTruthRegion& r : regions) {
+    DmfRegionAccuracy a;
+    a.name = r.name;
+    a.true_k_s = r.k_s;
+    a.true_rho_d = r.rho_d;
+    std::vector<double> alpha, ndf, held, k_s, rho_d;
+    const double margin = slices.pitch_m;
+    for (int p = 0; p < slices.num_points(); ++p) {
+      const Eigen::Vector3d x = slices.PointPosition(p);
+      if (x.x() < r.min_m.x() + margin || x.x() > r.max_m.x() - margin || x.y() < r.min_m.y() + margin ||
+          x.y() > r.max_m.y() - margin) {
+        continue;
+      }
+      ++a.points;
+      const DmfPointFit& f = maps.fits[p];
+      if (f.log_ndf.empty()) continue;
+      ++a.fitted;
+      alpha.push_back(f.alpha);
+      k_s.push_back(f.k_s);
+      rho_d.push_back(f.rho_d);
+      if (const DmfTruthFace* face = r.SingleRoughFace()) ndf.push_back(NdfRelativeL2(f, grid, *face));
+      if (held_out) {
+        const double e = DmfHeldOutError(slices, maps, p);
+        if (e >= 0) held.push_back(e);
+      }
+    }
+    a.median_alpha = Median(alpha);
+    a.median_ndf_l2 = Median(ndf);
+    a.median_held_out = Median(held);
+    a.median_k_s = Median(k_s);
+    a.median_rho_d = Median(rho_d);
+    out.push_back(a);
+  }
+  return out;
+}
+
+std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
+  nlohmann::json j;
+  j["format"] = "thinslab-dmf-comparison";
+  j["note"] = "medians over points at least one grid pitch inside each region; -1 = not applicable";
+  for (const DmfRegionAccuracy& a : accuracy) {
+    j["regions"].push_back({{"name", a.name},
+                            {"points", a.points},
+                            {"fitted", a.fitted},
+                            {"median_alpha", a.median_alpha},
+                            {"median_ndf_relative_l2", a.median_ndf_l2},
+                            {"median_held_out_relative_rms", a.median_held_out},
+                            {"median_k_s", a.median_k_s},
+                            {"true_k_s", a.true_k_s},
+                            {"median_rho_d", a.median_rho_d},
+                            {"true_rho_d", a.true_rho_d}});
+  }
+  return j.dump(2) + "\n";
+}
+
+}  // namespace thinslab

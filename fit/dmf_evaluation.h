@@ -1,0 +1,56 @@
+// SPDX-License-Identifier: Apache-2.0
+// Accuracy of dual-microfacet maps against the ground truth of a simulated dot scan
+// (<session>/ground_truth/truth.json, docs/format.md): per region, the fitted alpha, the NDF
+// against the true face NDF (one-sided regions: a two-sided slab has no single true NDF) and
+// the prediction of held-out dots.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+#include "fit/dmf_map_fit.h"
+
+namespace thinslab {
+
+struct DmfTruthFace {
+  std::string ndf = "ggx";  // "ggx" or "beckmann".
+  double alpha_x = 0, alpha_y = 0;
+  bool flat = true;
+};
+
+struct DmfTruthRegion {
+  std::string name;
+  Eigen::Vector2d min_m = Eigen::Vector2d::Zero(), max_m = Eigen::Vector2d::Zero();
+  DmfTruthFace top, bottom;  // Top = monitor side.
+  double rho_d = 0, k_s = 1;
+  // The one rough face of a one-sided region (nullptr for smooth and two-sided regions).
+  const DmfTruthFace* SingleRoughFace() const;
+};
+
+// Reads ground_truth/truth.json of a simulated session; an error names the file and field.
+Status ReadDmfTruth(const std::string& session_dir, std::vector<DmfTruthRegion>* regions);
+
+// True D(m) of a face in the optical frame of the fit (m.z > 0; the sample's y is flipped, which
+// leaves the axis-aligned distributions unchanged).
+double TrueNdf(const DmfTruthFace& face, const Eigen::Vector3d& m);
+
+// Relative L2 distance over the disk, sqrt(sum (D_fit - D_true)^2 / sum D_true^2) over the grid
+// cells; -1 when the point has no NDF.
+double NdfRelativeL2(const DmfPointFit& fit, const DmfNdfGrid& grid, const DmfTruthFace& face);
+
+struct DmfRegionAccuracy {
+  std::string name;
+  int points = 0, fitted = 0;     // Points at least one grid pitch inside the region; with an NDF.
+  double median_alpha = -1;
+  double median_ndf_l2 = -1;      // One-sided regions.
+  double median_held_out = -1;    // Captures fitted with held-out dots.
+  double median_k_s = -1, true_k_s = 1;
+  double median_rho_d = -1, true_rho_d = 0;
+};
+
+std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps,
+                                                   const std::vector<DmfTruthRegion>& regions);
+std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy);
+
+}  // namespace thinslab
