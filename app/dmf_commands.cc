@@ -6,11 +6,13 @@
 //   *_falsecolor.png the maps; ndf_<col>_<row>.png the NDF at chosen points (Dai Fig. 6)
 //   summary.json/.txt timings per stage, status counts, peak memory; options.ini
 //   comparison.json  per-region accuracy when the capture has ground_truth/truth.json (sim)
+//   ladder.exr       with --ladder: the issue #8 rung chosen per point and each rung's error
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <sstream>
 
 #include "app/commands.h"
@@ -19,10 +21,12 @@
 #include "core/false_color.h"
 #include "core/file.h"
 #include "core/memory.h"
+#include "core/parallel.h"
 #include "core/session_io.h"
 #include "core/version.h"
 #include "fit/dmf_evaluation.h"
 #include "fit/dmf_map_fit.h"
+#include "fit/dmf_model_ladder.h"
 #include "fit/dmf_processing.h"
 
 namespace thinslab {
@@ -50,8 +54,94 @@ struct DmfRun {
   double cluster_fraction = 0.01;
   int atlas_stride = 0;  // 0 = at most 64 x 64 tiles.
   std::string ndf_pixels;
+  bool ladder = false;  // Issue #8 rungs per point (needs held-out dots).
+  int ladder_tile = 4;  // Grid points per side of the tiles whose points decide together.
   std::string options_ini;
 };
+
+// Issue #8 model ladder: fitted at every fitted point (or at the representatives, whose choice
+// their cluster's points inherit from the highest-weight neighbour), decided per tile. ladder.exr channels: rung
+// (0, 3, 4, 5; -1 none), held-out error of rungs 3, 4, 5 (-1 not scored), noise floor.
+struct LadderMaps {
+  Image image;
+  std::map<int, int> rung_counts;
+  int evaluated = 0;
+  double parameters_saved = 0, seconds_saved = 0, seconds = 0;
+};
+
+Status RunLadder(const DmfSliceSet& slices, const DmfMaps& maps, const DmfMapFitOptions& fit, int tile,
+                 LadderMaps* out) {
+  if (tile < 1) return Status::Error("--ladder-tile must be >= 1, got " + std::to_string(tile));
+  if (std::none_of(slices.train.begin(), slices.train.end(), [](uint8_t t) { return t == 0; })) {
+    return Status::Error("--ladder scores models on held-out dots: add --hold-out true");
+  }
+  const auto start = std::chrono::steady_clock::now();
+  LadderOptions options;
+  options.point = fit.point;
+  const DmfNdfGrid grid(fit.point.ndf_resolution);
+  std::vector<int> points;
+  if (fit.cluster) {
+    points = maps.clustering.representatives;
+  } else {
+    for (int p = 0; p < slices.num_points(); ++p) {
+      if (!maps.fits[p].log_ndf.empty() || maps.fits[p].status == DmfStatus::kSpecular) points.push_back(p);
+    }
+  }
+  std::vector<LadderResult> results(points.size());
+  ParallelFor(static_cast<int>(points.size()), fit.num_threads,
+              [&](int k) { results[k] = FitLadder(slices.Slice(points[k]), grid, options); });
+  out->image = Image(slices.width, slices.height, {"rung", "held_out_single_ggx", "held_out_dmf_analytic",
+                                                   "held_out_dmf_tabulated", "noise_floor"}, -1.0f);
+  // Pixel clusters of the ladder: tiles of tile x tile grid points, whose evaluated points pool
+  // their held-out dots (ChooseLadderRung).
+  std::map<int, std::vector<const LadderResult*>> tiles;
+  auto tile_of = [&](int p) { return (p / slices.width / tile) * slices.width + (p % slices.width) / tile; };
+  for (size_t k = 0; k < points.size(); ++k) tiles[tile_of(points[k])].push_back(&results[k]);
+  std::map<int, int> rung_of_tile;
+  for (const auto& [t, group] : tiles) {
+    const int k = ChooseLadderRung(group, options.significance_sigmas);
+    const bool all_specular = std::all_of(group.begin(), group.end(), [](const LadderResult* r) { return r->specular; });
+    rung_of_tile[t] = all_specular ? 0 : k >= 0 ? kLadderRungIds[k] : -1;
+  }
+  std::vector<int> rung_of_point(slices.num_points(), -1);
+  for (size_t k = 0; k < points.size(); ++k) {
+    const LadderResult& r = results[k];
+    const int p = points[k];
+    rung_of_point[p] = r.specular ? 0 : rung_of_tile[tile_of(p)];
+    const int chosen = rung_of_point[p] == 3 ? 0 : rung_of_point[p] == 4 ? 1 : rung_of_point[p] == 5 ? 2 : -1;
+    const int x = p % slices.width, y = p / slices.width;
+    for (int j = 0; j < kNumLadderRungs; ++j) out->image.at(x, y, 1 + j) = static_cast<float>(r.held_out[j]);
+    out->image.at(x, y, 4) = static_cast<float>(r.noise_floor);
+    if (chosen >= 0) {
+      out->parameters_saved += r.parameters[2] - r.parameters[chosen];
+      out->seconds_saved += r.seconds[2] - r.seconds[chosen];
+    }
+  }
+  out->evaluated = static_cast<int>(points.size());
+  if (fit.cluster) {
+    const DmfClustering& c = maps.clustering;
+    for (int p = 0; p < slices.num_points(); ++p) {
+      if (rung_of_point[p] >= 0 || maps.fits[p].log_ndf.empty()) continue;
+      int best = -1;
+      double best_w = 0;
+      for (int k = 0; k < c.num_neighbors; ++k) {
+        const size_t idx = static_cast<size_t>(p) * c.num_neighbors + k;
+        if (c.neighbors[idx] >= 0 && c.weights[idx] > best_w) {
+          best_w = c.weights[idx];
+          best = c.neighbors[idx];
+        }
+      }
+      if (best >= 0) rung_of_point[p] = rung_of_point[c.representatives[best]];
+    }
+  }
+  for (int p = 0; p < slices.num_points(); ++p) {
+    if (maps.fits[p].status == DmfStatus::kSpecular) rung_of_point[p] = 0;
+    out->image.at(p % slices.width, p / slices.width, 0) = static_cast<float>(rung_of_point[p]);
+    ++out->rung_counts[rung_of_point[p]];
+  }
+  out->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return Status::Ok();
+}
 
 Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir, DmfRun run, std::string* brief) {
   Session session;
@@ -78,6 +168,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   if (pixels.empty()) {
     for (int k = 1; k <= 3; ++k) pixels.emplace_back(k * maps.width / 4, k * maps.height / 4);
   }
+
+  LadderMaps ladder;
+  if (run.ladder) THINSLAB_RETURN_IF_ERROR(RunLadder(slices, maps, run.fit, run.ladder_tile, &ladder));
 
   // Simulated captures carry their ground truth: compare per region.
   std::vector<DmfTruthRegion> truth;
@@ -114,6 +207,18 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   atlas.attributes()["atlas_stride"] = std::to_string(stride);
   atlas.attributes()["projection"] = "orthographic: cell (row, col) at h = (-1 + (col + 0.5) 2/N, -1 + (row + 0.5) 2/N), optical frame";
   THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "ndf_atlas.exr"), atlas));
+  if (run.ladder) {
+    ladder.image.attributes() = image.attributes();
+    THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "ladder.exr"), ladder.image));
+    Image undecided(maps.width, maps.height);
+    for (int p = 0; p < maps.width * maps.height; ++p) undecided.data()[p] = ladder.image.data()[p * 5] < 0 ? 1.f : 0.f;
+    FalseColorOptions color;
+    color.label = "model rung";
+    color.max_value = 5;
+    color.scale = std::max(1, 256 / std::max(maps.width, maps.height));
+    THINSLAB_RETURN_IF_ERROR(
+        WriteFalseColorPng(JoinPath(out.path(), "ladder_rung_falsecolor.png"), ladder.image, 0, &undecided, color));
+  }
 
   // Pictures: maps (grey where nothing was fitted) and NDFs at the chosen points.
   Image unfitted(maps.width, maps.height);
@@ -202,6 +307,15 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
                        {"pca_explained", maps.clustering.pca_explained},
                        {"mean_weight_residual", maps.clustering.mean_weight_residual}};
   }
+  if (run.ladder) {
+    nlohmann::json counts_json;
+    for (const auto& [rung, count] : ladder.rung_counts) counts_json[std::to_string(rung)] = count;
+    j["ladder"] = {{"rung_counts", counts_json},
+                   {"points_evaluated", ladder.evaluated},
+                   {"parameters_saved", ladder.parameters_saved},
+                   {"fit_seconds_saved", ladder.seconds_saved},
+                   {"seconds", ladder.seconds}};
+  }
   std::ostringstream txt;
   txt << "dual-microfacet fit of " << session_dir << ": " << maps.width << " x " << maps.height << " points, "
       << processing.grid_nx << " x " << processing.grid_ny << " dots, NDF " << n << " x " << n << ", eta "
@@ -212,6 +326,13 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
       << processing.merge_s << " s), fit " << maps.timings.total_s << " s (clustering " << maps.timings.clustering_s
       << " s, model " << maps.timings.representative_fit_s << " s, interpolation " << maps.timings.interpolation_s
       << " s), writing " << write_s << " s; peak memory " << PeakResidentMemoryMiB() << " MiB\n";
+  if (run.ladder) {
+    txt << "model ladder (issue #8; rung 0 attenuator, 3 single GGX, 4 analytic dual-microfacet, 5 tabulated):";
+    for (const auto& [rung, count] : ladder.rung_counts) txt << " rung " << rung << ": " << count;
+    txt << "; over " << ladder.evaluated << " evaluated points " << ladder.parameters_saved
+        << " parameters and " << ladder.seconds_saved << " s of fitting saved against rung 5 (" << ladder.seconds
+        << " s)\n";
+  }
   if (has_truth) {
     txt << "against ground truth (medians per region; NDF L2 on one-sided regions, held-out with --hold-out):\n";
     for (const DmfRegionAccuracy& a : accuracy) {
@@ -251,6 +372,8 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddInt("threads", &run.fit.num_threads, "threads");
   parser.AddInt("atlas-stride", &run.atlas_stride, "NDF atlas keeps every n-th point; 0 = at most 64 x 64 tiles");
   parser.AddString("ndf-pixels", &run.ndf_pixels, "points for NDF pictures, '<col>,<row>;...'");
+  parser.AddBool("ladder", &run.ladder, "also fit the issue #8 model ladder and pick per tile (needs --hold-out)");
+  parser.AddInt("ladder-tile", &run.ladder_tile, "grid points per side of a ladder tile (its points decide together)");
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();

@@ -3,31 +3,18 @@
 
 #include <glog/logging.h>
 
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <sstream>
-#include <thread>
 
 #include "core/math.h"
+#include "core/parallel.h"
 
 namespace thinslab {
 namespace {
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
-
-template <typename Body>
-void ParallelFor(int n, int num_threads, const Body& body) {
-  std::atomic<int> next{0};
-  auto worker = [&]() {
-    for (int k = next++; k < n; k = next++) body(k);
-  };
-  std::vector<std::thread> threads;
-  for (int t = 1; t < std::max(1, num_threads); ++t) threads.emplace_back(worker);
-  worker();
-  for (auto& t : threads) t.join();
 }
 
 // ln k_s of point `slice` for a model shape (alpha, D, smith) borrowed from `shape`: the mean

@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: Apache-2.0
+// Fit no more model than a slice needs (issue #8, the BTDF rungs of the ladder on dot-scan
+// data). For one point's slice, in order of complexity:
+//   rung 3  single rough GGX interface (Walter et al. 2007): alpha_g, k_s          (2 parameters)
+//   rung 4  dual-microfacet with an analytic isotropic GGX NDF (Dai Eq. 11 with D and G
+//           of one GGX roughness): alpha_ndf, the Eq. 11 weight alpha, k_s            (3 parameters)
+//   rung 5  dual-microfacet with the tabulated NDF (fit/dmf_point_fit.h): the interior
+//           cells of the N x N grid, alpha, smith_alpha, k_s                   (N^2 pi/4 + ~3)
+// A slice whose lobe is narrower than the dot spacing or that shows no scattering at all
+// (PrecheckSlice: specular or no lobe) resolves no BTDF shape and takes rung 0, the attenuator
+// (a smooth slab only attenuates).
+// Each rung is fitted to the training dots and scored on the held-out dots (in-lobe relative
+// RMS, HeldOutRelativeRms). The chosen rung is the simplest whose held-out error is within noise
+// of the best: a paired comparison over the same held-out dots, where rung r is kept unless its
+// mean extra squared error exceeds significance_sigmas standard errors of the per-dot
+// differences. The noise floor e_noise (the held-out error measurement noise alone would give,
+// sqrt(sum sigma^2 / sum meas^2)) is reported. BIC on the training log residuals
+// (n ln(RSS / n) + k ln n) is the documented alternative. rho_d (Eq. 14) is common to all rungs.
+#pragma once
+
+#include <array>
+#include <string>
+
+#include "fit/dmf_point_fit.h"
+#include "fit/single_interface_fit.h"
+
+namespace thinslab {
+
+struct AnalyticDmfFit {
+  bool ok = false;
+  double alpha_ndf = 0.2;  // GGX roughness of the virtual surface (D and G).
+  double alpha = 0.5;      // Eq. 11 weight.
+  double k_s = 0, rho_d = 0;
+  double log_rms_residual = 0;
+};
+
+// Rung 4 by Ceres on the Eq. 15 log residuals, from three starts of the weight (0.2, 0.5, 0.8).
+AnalyticDmfFit FitAnalyticDualMicrofacet(const DmfSlice& slice, const DmfPointFitOptions& options);
+double PredictAnalyticDualMicrofacet(const AnalyticDmfFit& fit, double eta, const Eigen::Vector3d& i,
+                                     const Eigen::Vector3d& o);
+
+constexpr int kNumLadderRungs = 3;
+constexpr std::array<int, kNumLadderRungs> kLadderRungIds = {3, 4, 5};  // Issue #8 numbering.
+const char* LadderRungName(int rung_index);
+
+struct LadderOptions {
+  DmfPointFitOptions point;
+  double significance_sigmas = 2.0;
+  double lobe_fraction = 0.1;  // Held-out dots above this fraction of the peak are scored.
+};
+
+struct LadderResult {
+  bool specular = false;       // Rung 0: no rung fitted.
+  int chosen = -1;             // Index into kLadderRungIds; -1 when no rung could be scored.
+  int chosen_by_bic = -1;
+  std::array<double, kNumLadderRungs> held_out{{-1, -1, -1}};
+  std::array<double, kNumLadderRungs> bic{{0, 0, 0}};
+  std::array<int, kNumLadderRungs> parameters{{0, 0, 0}};
+  std::array<double, kNumLadderRungs> seconds{{0, 0, 0}};
+  double noise_floor = 0;      // e_noise.
+  // Per rung, the squared prediction error of every scored dot (same dots for all rungs), and
+  // the sum of the squared measurements they are relative to: what ChooseLadderRung pools.
+  std::array<std::vector<double>, kNumLadderRungs> squared_errors;
+  double signal = 0;
+  SingleInterfaceFit single;
+  AnalyticDmfFit analytic;
+  DmfPointFit tabulated;
+  // Issue #8 rung number of the choice: 0 (attenuator), 3, 4, 5; -1 when nothing could be told.
+  int chosen_rung() const { return specular ? 0 : chosen >= 0 ? kLadderRungIds[chosen] : -1; }
+};
+
+// The slice must hold held-out dots (train == 0); `grid` has options.point.ndf_resolution.
+// `chosen` is the choice from this point's dots alone (ChooseLadderRung over one point).
+LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const LadderOptions& options);
+
+// The choice for a group of points of one material (a pixel cluster, issue #8): the paired
+// comparison pooled over all their scored dots, each point's dots relative to its own signal.
+// Index into kLadderRungIds; -1 when no rung was fitted on every point of the group. Specular
+// points are skipped (they are rung 0 on their own).
+int ChooseLadderRung(const std::vector<const LadderResult*>& group, double significance_sigmas);
+
+}  // namespace thinslab
