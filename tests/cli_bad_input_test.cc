@@ -295,6 +295,22 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   EXPECT_EQ(maps.num_channels(), 6);
   for (float v : maps.data()) ASSERT_TRUE(std::isfinite(v));
 
+  // The model ladder needs held-out dots; with them it writes its rung map.
+  const RunResult no_hold_out = RunThinslab("fit dmf " + scan + " --pitch-mm 8 --ladder true --out " + (dir / "l0"));
+  EXPECT_EQ(no_hold_out.exit_code, 1);
+  EXPECT_NE(no_hold_out.output.find("--hold-out"), std::string::npos) << no_hold_out.output;
+  const RunResult ladder =
+      RunThinslab("fit dmf " + scan + " --pitch-mm 8 --hold-out true --ladder true --out " + (dir / "l1"));
+  ASSERT_EQ(ladder.exit_code, 0) << ladder.output;
+  Image rungs;
+  ASSERT_TRUE(ReadExr(dir / "l1" + "/ladder.exr", &rungs).ok());
+  const int rung_channel = rungs.ChannelIndex("rung");
+  ASSERT_GE(rung_channel, 0);
+  for (int p = 0; p < rungs.width() * rungs.height(); ++p) {
+    const float rung = rungs.data()[p * rungs.num_channels() + rung_channel];
+    EXPECT_TRUE(rung == -1 || rung == 0 || rung == 3 || rung == 4 || rung == 5) << rung;
+  }
+
   const RunResult bad_option = RunThinslab("fit dmf " + scan + " --ndf-resolution 2 --out " + (dir / "x"));
   EXPECT_EQ(bad_option.exit_code, 1);
   EXPECT_NE(bad_option.output.find("ndf_resolution"), std::string::npos) << bad_option.output;
