@@ -34,8 +34,6 @@ struct Row {
   double log_a_top, log_a_bottom;   // ln A_t, ln A_b without shadowing.
   double log_g_top, log_g_bottom;   // ln G at the current smith alpha.
   Eigen::Vector3d i, w, ip, o, h_top, h_bottom;  // For G: G1(i,h_t) G1(w,h_t), G1(i',h_b) G1(o,h_b).
-  Eigen::Vector3d direction;        // i (Eq. 18 mean direction).
-  double measured;                  // R - rho_d.
   bool in_core;                     // In the lobe core that Eq. 18 compares.
   double solid_angle;
 };
@@ -157,7 +155,7 @@ double MeanDirectionMismatch(const std::vector<Row>& rows, const std::vector<dou
   for (size_t k = 0; k < rows.size(); ++k) {
     if (!rows[k].in_core) continue;
     const double v = std::exp(logs[k] - max_log) * rows[k].solid_angle;
-    sum += v * rows[k].direction;
+    sum += v * rows[k].i;
     total += v;
   }
   if (!(total > 0)) return 1e300;
@@ -369,9 +367,7 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
     r.w = unit.OutgoingMomentum(o) / options.eta;
     r.ip = unit.IncidentMomentum(i) / options.eta;
     r.o = o;
-    r.direction = i;
     r.solid_angle = slice.solid_angle[q];
-    r.measured = v;
     r.in_core = v > options.alpha_lobe_fraction * peak;
     if (r.in_core) {
       measured_mean += v * r.solid_angle * i;
