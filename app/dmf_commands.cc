@@ -60,8 +60,9 @@ struct DmfRun {
 };
 
 // Issue #8 model ladder: fitted at every fitted point (or at the representatives, whose choice
-// their cluster's points inherit from the highest-weight neighbour), decided per tile. ladder.exr channels: rung
-// (0, 3, 4, 5; -1 none), held-out error of rungs 3, 4, 5 (-1 not scored), noise floor.
+// their cluster's points inherit from the highest-weight neighbour), decided per tile; points
+// without a resolvable lobe are the attenuator. ladder.exr channels: rung (0, 3, 4, 5; -1
+// none), held-out error of rungs 3, 4, 5 (-1 not scored), noise floor.
 struct LadderMaps {
   Image image;
   std::map<int, int> rung_counts;
@@ -135,7 +136,8 @@ Status RunLadder(const DmfSliceSet& slices, const DmfMaps& maps, const DmfMapFit
     }
   }
   for (int p = 0; p < slices.num_points(); ++p) {
-    if (maps.fits[p].status == DmfStatus::kSpecular) rung_of_point[p] = 0;
+    const DmfStatus status = maps.fits[p].status;
+    if (status == DmfStatus::kSpecular || status == DmfStatus::kNoLobe) rung_of_point[p] = 0;
     out->image.at(p % slices.width, p / slices.width, 0) = static_cast<float>(rung_of_point[p]);
     ++out->rung_counts[rung_of_point[p]];
   }
