@@ -21,6 +21,7 @@ int RunFitPhase(int argc, char** argv);
 int RunFitDmf(int argc, char** argv);  // app/dmf_commands.cc
 int RunSimLaser(int argc, char** argv);
 int RunCharts(int argc, char** argv);
+int RunBench(int argc, char** argv);    // app/bench_command.cc
 int RunAcquire(int argc, char** argv);  // app/acquire_commands.cc
 int RunSynth(int argc, char** argv);    // app/synth_commands.cc
 int RunCalib(int argc, char** argv);    // app/calib_commands.cc: dispatches to the six below.

@@ -36,6 +36,7 @@ const std::vector<Command>& Commands() {
       {"fit", thinslab::RunFit, "fit a model to a capture (fit tau | phase | dmf)"},
       {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy"},
       {"synth", thinslab::RunSynth, "synthesize contamination layers from measured prototypes"},
+      {"bench", thinslab::RunBench, "speed-against-accuracy sweep of the fit knobs (bench sweep)"},
       {"charts", thinslab::RunCharts, "model-vs-Monte-Carlo charts of the optics models (docs/models)"},
   };
   return commands;

@@ -45,13 +45,16 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
   const int W = options.width_px, H = options.height_px;
   cv::Mat canvas(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
   const int left = 90, right = 20, top = 40, bottom = 55, gap = 25;
+  // x range in plot coordinates (log10 x on a log axis).
+  auto tx = [&](double x) { return options.log_x ? std::log10(x) : x; };
+  auto x_usable = [&](double x) { return std::isfinite(x) && (!options.log_x || x > 0); };
   double x_lo = 1e300, x_hi = -1e300;
   for (const auto& panel : panels) {
     for (const auto& s : panel.series) {
       for (double x : s.x) {
-        if (std::isfinite(x)) {
-          x_lo = std::min(x_lo, x);
-          x_hi = std::max(x_hi, x);
+        if (x_usable(x)) {
+          x_lo = std::min(x_lo, tx(x));
+          x_hi = std::max(x_hi, tx(x));
         }
       }
     }
@@ -59,6 +62,11 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
   if (!(x_hi > x_lo)) {
     x_lo -= 1;
     x_hi += 1;
+  }
+  if (options.log_x) {
+    const double pad = 0.04 * (x_hi - x_lo);
+    x_lo -= pad;
+    x_hi += pad;
   }
   double total_weight = 0;
   for (const auto& panel : panels) total_weight += panel.height_weight;
@@ -91,10 +99,24 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
     const double pad = 0.05 * (y_hi - y_lo);
     y_lo -= pad;
     y_hi += pad;
-    auto px = [&](double x) { return box.x + (x - x_lo) / (x_hi - x_lo) * box.width; };
+    auto px = [&](double x) { return box.x + (tx(x) - x_lo) / (x_hi - x_lo) * box.width; };
     auto py = [&](double y) { return box.y + box.height - (ty(y) - y_lo) / (y_hi - y_lo) * box.height; };
     // Grid, ticks.
-    for (double t : Ticks(x_lo, x_hi, 8)) {
+    std::vector<double> xt;
+    if (options.log_x) {
+      // Decades, plus 2 and 5 when the axis spans few decades.
+      const bool fine = x_hi - x_lo < 3;
+      for (double e = std::floor(x_lo); e <= x_hi; e += 1) {
+        for (double m : {1.0, 2.0, 5.0}) {
+          if (m != 1.0 && !fine) continue;
+          const double t = m * std::pow(10.0, e);
+          if (std::log10(t) >= x_lo && std::log10(t) <= x_hi) xt.push_back(t);
+        }
+      }
+    } else {
+      xt = Ticks(x_lo, x_hi, 8);
+    }
+    for (double t : xt) {
       const int x = static_cast<int>(px(t));
       cv::line(canvas, cv::Point(x, box.y), cv::Point(x, box.y + box.height), cv::Scalar(230, 230, 230));
       if (pi + 1 == panels.size()) {
@@ -132,6 +154,7 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
       std::vector<cv::Point> pts;
       for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
         if (panel.log_y && !(s.y[i] > 0)) continue;
+        if (!x_usable(s.x[i]) || !std::isfinite(s.y[i])) continue;
         const cv::Point pt(static_cast<int>(px(s.x[i])), static_cast<int>(py(s.y[i])));
         if (s.line) {
           pts.push_back(pt);
@@ -142,6 +165,13 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
             cv::line(canvas, cv::Point(pt.x, ylo), cv::Point(pt.x, static_cast<int>(py(hi))), color);
           }
           cv::circle(canvas, pt, 3, color, cv::FILLED, cv::LINE_AA);
+        }
+        if (s.point_labels.size() == s.x.size() && !s.point_labels[i].empty()) {
+          // Right of the point, or left of it where the text would leave the box.
+          const cv::Size size = cv::getTextSize(s.point_labels[i], cv::FONT_HERSHEY_SIMPLEX, 0.36, 1, nullptr);
+          const int x = pt.x + 5 + size.width > box.x + box.width ? pt.x - 5 - size.width : pt.x + 5;
+          cv::putText(canvas, s.point_labels[i], cv::Point(x, pt.y - 5), cv::FONT_HERSHEY_SIMPLEX, 0.36, color, 1,
+                      cv::LINE_AA);
         }
       }
       if (s.line && pts.size() > 1) cv::polylines(canvas, pts, false, color, 2, cv::LINE_AA);

@@ -12,6 +12,7 @@ namespace thinslab {
 
 struct PlotSeries {
   std::vector<double> x, y, y_error;  // y_error optional (empty or same size).
+  std::vector<std::string> point_labels;  // Optional: drawn beside each point (empty or same size).
   std::string label;
   bool line = false;                  // Line (true) or points (false).
   int color_bgr = 0x1f77b4;           // 0xRRGGBB.
@@ -29,6 +30,7 @@ struct PlotPanel {
 struct PlotOptions {
   std::string title;
   std::string x_label;
+  bool log_x = false;  // Shared x axis in log10 (positive x only).
   int width_px = 900;
   int height_px = 700;
 };

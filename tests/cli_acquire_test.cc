@@ -23,6 +23,7 @@
 
 #include "core/file.h"
 #include "core/session_io.h"
+#include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 
 extern char** environ;
@@ -31,28 +32,6 @@ namespace thinslab {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string Binary() {
-  const char* bin_dir = std::getenv("THINSLAB_BINARY_DIR");
-  return std::string(bin_dir ? bin_dir : ".") + "/app/thinslab";
-}
-
-struct RunResult {
-  int exit_code = -1;
-  std::string output;
-};
-
-RunResult RunThinslab(const std::string& args) {
-  const std::string command = Binary() + " " + args + " 2>&1 </dev/null";
-  RunResult result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  std::array<char, 4096> buffer;
-  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.output += buffer.data();
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
 
 std::vector<std::string> Split(const std::string& args) {
   std::istringstream in(args);
@@ -121,7 +100,7 @@ TEST_F(CliAcquireTest, KilledMidScanAndResumedEqualsAnUninterruptedRun) {
 
   // The same acquisition as a child process, killed once the manifest shows 5 frames.
   std::vector<std::string> args = Split(ShadowArgs(resumed));
-  args.insert(args.begin(), Binary());
+  args.insert(args.begin(), ThinslabBinary());
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);

@@ -17,31 +17,13 @@
 #include "core/exr_io.h"
 #include "core/image.h"
 #include "core/session_io.h"
+#include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct RunResult {
-  int exit_code = -1;
-  std::string output;
-};
-
-RunResult RunThinslab(const std::string& args) {
-  const char* bin_dir = std::getenv("THINSLAB_BINARY_DIR");
-  const std::string binary = std::string(bin_dir ? bin_dir : ".") + "/app/thinslab";
-  const std::string command = binary + " " + args + " 2>&1";
-  RunResult result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  std::array<char, 4096> buffer;
-  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.output += buffer.data();
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
 
 int CountLines(const std::string& text) {
   int lines = 0;
