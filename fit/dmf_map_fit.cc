@@ -118,7 +118,8 @@ bool DmfMapFitOptions::Check(std::string* error) const {
 }
 
 Image DmfMaps::ToImage() const {
-  Image image(width, height, {"alpha", "smith_alpha", "k_s", "rho_d", "residual", "status"});
+  Image image(width, height, {"alpha", "smith_alpha", "k_s", "rho_d", "residual", "status", "measured_ndf_fraction",
+                              "transmittance"});
   for (int p = 0; p < width * height; ++p) {
     const DmfPointFit& f = fits[p];
     const int x = p % width, y = p / width;
@@ -128,6 +129,8 @@ Image DmfMaps::ToImage() const {
     image.at(x, y, 3) = static_cast<float>(f.rho_d);
     image.at(x, y, 4) = static_cast<float>(f.log_rms_residual);
     image.at(x, y, 5) = static_cast<float>(static_cast<int>(f.status));
+    image.at(x, y, 6) = static_cast<float>(f.measured_ndf_fraction);
+    image.at(x, y, 7) = static_cast<float>(f.transmittance);
   }
   return image;
 }
@@ -222,6 +225,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         if (rep.log_ndf.empty() || !(rep.k_s > 0)) continue;
         f.alpha += w * rep.alpha;
         f.smith_alpha += w * rep.smith_alpha;
+        f.measured_ndf_fraction += w * rep.measured_ndf_fraction;
         for (int cell = 0; cell < grid.num_cells(); ++cell) d[cell] += w * std::exp(rep.log_ndf[cell]);
         weight_sum += w;
       }
@@ -234,6 +238,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       }
       f.alpha /= weight_sum;
       f.smith_alpha /= weight_sum;
+      f.measured_ndf_fraction /= weight_sum;
       f.log_ndf.resize(grid.num_cells());
       for (int cell = 0; cell < grid.num_cells(); ++cell) {
         f.log_ndf[cell] = std::log(std::max(d[cell] / weight_sum, 1e-6));
@@ -243,7 +248,17 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       f.k_s = std::exp(FitLogScale(slice, f, grid, options.point, &used));
       f.num_used = used;
       f.log_rms_residual = LogRmsResidual(slice, f, grid, options.point);
-      f.status = used > 0 ? DmfStatus::kInterpolated : DmfStatus::kNoLobe;
+      f.transmittance = DirectionalTransmittance(f, grid, options.point.eta, slice.o);
+      // An interpolated NDF is as measured as its representatives' (weighted).
+      if (used == 0) {
+        f.status = DmfStatus::kNoLobe;
+      } else if (f.measured_ndf_fraction < options.point.min_measured_ndf_fraction) {
+        f.status = DmfStatus::kUndersampled;
+      } else if (f.transmittance > options.point.max_transmittance || f.k_s > options.point.max_k_s) {
+        f.status = DmfStatus::kUnphysical;
+      } else {
+        f.status = DmfStatus::kInterpolated;
+      }
       maps->fits[p] = f;
     });
   }

@@ -134,6 +134,22 @@ double LookupStencil(const DmfNdfGrid::Stencil& s, const std::vector<double>& lo
 }
 
 // ln of the predicted rho of a row (Eq. 11 in logarithms), D unnormalised.
+// DmfPointFit::measured_ndf_fraction: the projected integral of D over the cells some row's
+// stencil touches, over the whole integral `total`.
+double MeasuredNdfFraction(const std::vector<Row>& rows, const DmfNdfGrid& grid, const std::vector<double>& log_d,
+                           double total) {
+  if (!(total > 0)) return 0;
+  std::vector<double> measured(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
+  for (const Row& r : rows) {
+    for (const DmfNdfGrid::Stencil* s : {&r.top, &r.bottom}) {
+      for (int k = 0; k < 4; ++k) {
+        if (s->weights[k] > 0) measured[s->cells[k]] = log_d[s->cells[k]];
+      }
+    }
+  }
+  return std::min(1.0, grid.ProjectedIntegral(measured) / total);
+}
+
 double LogPrediction(const Row& r, const std::vector<double>& log_d, double alpha) {
   return alpha * (r.log_a_top + r.log_g_top + LookupStencil(r.top, log_d)) +
          (1 - alpha) * (r.log_a_bottom + r.log_g_bottom + LookupStencil(r.bottom, log_d));
@@ -243,6 +259,8 @@ const char* DmfStatusName(DmfStatus status) {
     case DmfStatus::kOutside: return "outside";
     case DmfStatus::kNotConverged: return "not_converged";
     case DmfStatus::kInterpolated: return "interpolated";
+    case DmfStatus::kUndersampled: return "undersampled";
+    case DmfStatus::kUnphysical: return "unphysical";
   }
   return "unknown";
 }
@@ -260,6 +278,10 @@ bool DmfPointFitOptions::Check(std::string* error) const {
     e << "min_relative_value must be in (0, 1), got " << min_relative_value;
   else if (min_measurements < 3) e << "min_measurements must be >= 3, got " << min_measurements;
   else if (min_core_measurements < 1) e << "min_core_measurements must be >= 1, got " << min_core_measurements;
+  else if (!(min_measured_ndf_fraction >= 0 && min_measured_ndf_fraction <= 1))
+    e << "min_measured_ndf_fraction must be in [0, 1], got " << min_measured_ndf_fraction;
+  else if (!(max_transmittance > 0)) e << "max_transmittance must be > 0, got " << max_transmittance;
+  else if (!(max_k_s > 0)) e << "max_k_s must be > 0, got " << max_k_s;
   *error = e.str();
   return error->empty();
 }
@@ -420,13 +442,23 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
 
   // k_s: the level D absorbed (Eq. 13), D normalised to unit projected area.
   fit.k_s = grid.ProjectedIntegral(log_d);
+  fit.measured_ndf_fraction = MeasuredNdfFraction(rows, grid, log_d, fit.k_s);
   const double log_k = std::log(fit.k_s);
   fit.log_ndf.assign(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
   for (int cell = 0; cell < grid.num_cells(); ++cell) {
     fit.log_ndf[cell] = grid.InDisk(cell) ? log_d[cell] - log_k : DmfNdfGrid::kLogEpsilon;
   }
   fit.alpha = alpha;
-  fit.status = converged ? DmfStatus::kOk : DmfStatus::kNotConverged;
+  fit.transmittance = DirectionalTransmittance(fit, grid, options.eta, slice.o);
+  if (!converged) {
+    fit.status = DmfStatus::kNotConverged;
+  } else if (fit.measured_ndf_fraction < options.min_measured_ndf_fraction) {
+    fit.status = DmfStatus::kUndersampled;
+  } else if (fit.transmittance > options.max_transmittance || fit.k_s > options.max_k_s) {
+    fit.status = DmfStatus::kUnphysical;
+  } else {
+    fit.status = DmfStatus::kOk;
+  }
   return fit;
 }
 
@@ -445,6 +477,26 @@ double PredictDualMicrofacet(const DmfPointFit& fit, const DmfNdfGrid& grid, dou
   else if (fit.alpha <= 0) rho = bottom;
   else if (top > 0 && bottom > 0) rho = std::exp(fit.alpha * std::log(top) + (1 - fit.alpha) * std::log(bottom));
   return fit.rho_d + fit.k_s * rho;
+}
+
+}  // namespace thinslab
+
+namespace thinslab {
+
+double DirectionalTransmittance(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& o) {
+  if (fit.log_ndf.empty()) return 0;
+  constexpr int kSide = 64;
+  const double h = 2.0 / kSide;
+  double sum = 0;
+  for (int row = 0; row < kSide; ++row) {
+    for (int col = 0; col < kSide; ++col) {
+      const double x = -1 + (col + 0.5) * h, y = -1 + (row + 0.5) * h;
+      const double r2 = x * x + y * y;
+      if (r2 >= 1) continue;
+      sum += PredictDualMicrofacet(fit, grid, eta, Eigen::Vector3d(x, y, std::sqrt(1 - r2)), o);
+    }
+  }
+  return sum * h * h;
 }
 
 }  // namespace thinslab

@@ -54,6 +54,16 @@ enum class DmfStatus : uint8_t {
   kOutside = 4,       // Point not seen by the camera or off the sample.
   kNotConverged = 5,  // alpha still moving after max_alpha_iterations (result kept).
   kInterpolated = 6,  // Clustered run: model interpolated from representatives (Eqs. 20-22).
+  // Less than min_measured_ndf_fraction of the fitted NDF's projected mass lies in cells a
+  // measurement constrains: the rest is the Eq. 17 smoothness filling gaps between sparse dots
+  // or extrapolating a lobe wider than the monitor, so k_s (the NDF's integral) and the tails
+  // are not measured. The fit is kept; it predicts the dots it saw.
+  kUndersampled = 7,
+  // The fitted model transmits more than the light it receives (DmfPointFit::transmittance >
+  // max_transmittance), or k_s > max_k_s: the normalised NDF put its mass at half vectors that
+  // transmit almost nothing (grazing cells, where ln A of Eq. 15 is very negative and any
+  // level of D fits), so k_s is meaningless although the dots seen are predicted.
+  kUnphysical = 8,
 };
 const char* DmfStatusName(DmfStatus status);
 
@@ -79,6 +89,16 @@ struct DmfPointFitOptions {
   // spacing (a smooth face), status kSpecular.
   int min_core_measurements = 3;
   int min_measurements = 8;        // Fewer usable training dots: status kNoLobe or kSpecular.
+  // Below this measured share of the fitted NDF (DmfPointFit::measured_ndf_fraction): status
+  // kUndersampled (docs/stability.md has the measured boundary).
+  double min_measured_ndf_fraction = 0.5;
+  // Above this directional transmittance: status kUnphysical. A non-absorbing slab transmits at
+  // most 1; the margin covers noise and the Eq. 14 rho_d taken from the lobe's floor.
+  double max_transmittance = 1.3;
+  // Above this k_s: status kUnphysical. With D normalised (Dai Sec. 3) k_s is the slab's
+  // transmittance over that of the unit model, about 1 for a clean non-absorbing slab (0.75-1.3
+  // measured on the simulated rig); 4 leaves room for rho_d and calibration errors.
+  double max_k_s = 4;
   bool Check(std::string* error) const;
 };
 
@@ -92,7 +112,17 @@ struct DmfPointFit {
   int alpha_iterations = 0;
   int num_used = 0;             // Training measurements in Eq. 16.
   double log_rms_residual = 0;  // RMS of the Eq. 15 residuals in ln units at the solution.
+  // Share of the fitted NDF's projected integral in cells that an Eq. 16 row touches (the 2 x 2
+  // bilinear footprint of either virtual configuration's half vector); 0 when not fitted.
+  double measured_ndf_fraction = 0;
+  // Directional transmittance of the fitted model for this view, integral of R cos(theta_i)
+  // d omega_i over the light hemisphere (energy conservation wants <= 1); 0 when not fitted.
+  double transmittance = 0;
 };
+
+// DmfPointFit::transmittance: sum of R over a 64 x 64 grid of the unit disk of projected light
+// directions (cos(theta) d omega = dx dy).
+double DirectionalTransmittance(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& o);
 
 // Dai Eq. 14, rho_d = min_q { R_q : I_q > 0.05 I_avg }, over the training dots of a slice whose
 // dots lie on an nx x ny grid (row-major). The minimum of single noisy measurements is biased

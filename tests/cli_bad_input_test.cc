@@ -274,7 +274,9 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   }
   Image maps;
   ASSERT_TRUE(ReadExr(scan + "/fit/dmf/maps.exr", &maps).ok());
-  EXPECT_EQ(maps.num_channels(), 6);
+  EXPECT_EQ(maps.num_channels(), 8);
+  EXPECT_GE(maps.ChannelIndex("measured_ndf_fraction"), 0);
+  EXPECT_GE(maps.ChannelIndex("transmittance"), 0);
   for (float v : maps.data()) ASSERT_TRUE(std::isfinite(v));
 
   // The model ladder needs held-out dots; with them it writes its rung map.
