@@ -6,6 +6,7 @@
 #include <string>
 
 #include "core/status.h"
+#include "fit/laser_lobe_ladder.h"
 #include "fit/phase_fit.h"
 #include "fit/tau_evaluation.h"
 #include "fit/tau_fit.h"
@@ -49,7 +50,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
 // summary.txt, rings.csv, lobe_plot.png, options.ini} atomically.
 Status FitPhasePipeline(const std::string& session_dir, const std::string& out_dir, const PhaseFitOptions& options,
                         int supersample, const std::string& options_ini, PhaseFitSummary* summary,
-                        std::vector<LaserRing>* rings);
+                        std::vector<LaserRing>* rings, LaserLadderResult* ladder = nullptr);
 
 // Adds the sim rig and session options to a parser (used by `sim shadow-maps` and `demo`).
 class OptionParser;

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "app/commands.h"
+#include "fit/laser_lobe_ladder.h"
 #include "app/option_parser.h"
 #include "core/exr_io.h"
 #include "core/file.h"
@@ -134,7 +135,7 @@ Status MedianTauFromMap(const std::string& path, double* tau) {
 
 Status FitPhasePipeline(const std::string& session_dir, const std::string& out_dir, const PhaseFitOptions& options,
                         int supersample, const std::string& options_ini, PhaseFitSummary* summary,
-                        std::vector<LaserRing>* rings) {
+                        std::vector<LaserRing>* rings, LaserLadderResult* ladder) {
   Session session;
   THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
   LaserLobePreparationOptions prep;
@@ -142,6 +143,14 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   LaserLobeImages images;
   THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(session_dir, session, prep, &images));
   THINSLAB_RETURN_IF_ERROR(FitPhase(options, images, rings, summary).WithContext(session_dir));
+  // Model ladder rungs 0-2 (issue #8) on the same rings; 2 standard errors as in the dot-scan
+  // ladder.
+  LaserLadderResult ladder_result;
+  const bool has_ladder = rings->size() >= 10;
+  if (has_ladder) {
+    THINSLAB_RETURN_IF_ERROR(FitLaserLobeLadder(*rings, options, 2.0, &ladder_result).WithContext(session_dir));
+  }
+  if (ladder != nullptr) *ladder = ladder_result;
   nlohmann::json truth;
   const std::string truth_path = JoinPath(JoinPath(session_dir, "ground_truth"), "truth.json");
   if (FileExists(truth_path)) {
@@ -155,6 +164,9 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, truth)));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "rings.csv"), RingsCsv(*rings)));
+  if (has_ladder) {
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "ladder.json"), LaserLadderJson(ladder_result)));
+  }
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), options_ini));
   THINSLAB_RETURN_IF_ERROR(WriteLobePlot(JoinPath(out.path(), "lobe_plot.png"), *rings, *summary));
   return out.Commit();
@@ -189,8 +201,10 @@ int RunFitPhase(int argc, char** argv) {
   if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "phase");
   PhaseFitSummary summary;
   std::vector<LaserRing> rings;
+  LaserLadderResult ladder;
   if (status.ok()) {
-    status = FitPhasePipeline(session_dir, out_dir, options, supersample, parser.ToIni(), &summary, &rings);
+    status =
+        FitPhasePipeline(session_dir, out_dir, options, supersample, parser.ToIni(), &summary, &rings, &ladder);
   }
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";
@@ -198,6 +212,12 @@ int RunFitPhase(int argc, char** argv) {
   }
   std::cout << summary.BriefReport() << "\n";
   if (!summary.IsUsable()) std::cout << summary.message << "\n";
+  if (ladder.chosen_rung >= 0) {
+    std::cout << "model ladder: rung " << ladder.chosen_rung << " (" << LaserLadderRungName(ladder.chosen_rung)
+              << "); held-out chi2 per ring";
+    for (int k = 0; k < kNumLaserLadderRungs; ++k) std::cout << (k ? ", " : " ") << ladder.held_out_chi2[k];
+    std::cout << " (rungs 0, 1, 2)\n";
+  }
   std::cout << "wrote " << out_dir << "\n";
   return 0;
 }

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "fit/dmf_model_ladder.h"
 
+#include "fit/ladder_choice.h"
+
 #include <ceres/ceres.h>
 
 #include <chrono>
@@ -157,8 +159,8 @@ LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const Ladd
 }
 
 int ChooseLadderRung(const std::vector<const LadderResult*>& group, double significance_sigmas) {
-  // Per-dot squared errors relative to their point's signal, pooled.
-  std::array<std::vector<double>, kNumLadderRungs> pooled;
+  // Per-dot squared errors relative to their point's signal, pooled over the group.
+  std::vector<std::vector<double>> pooled(kNumLadderRungs);
   std::array<bool, kNumLadderRungs> available{{true, true, true}};
   int points = 0;
   for (const LadderResult* r : group) {
@@ -170,34 +172,10 @@ int ChooseLadderRung(const std::vector<const LadderResult*>& group, double signi
     }
   }
   if (points == 0) return -1;
-  int best = -1;
-  double best_sum = 1e300;
   for (int k = 0; k < kNumLadderRungs; ++k) {
-    if (!available[k]) continue;
-    double sum = 0;
-    for (double e : pooled[k]) sum += e;
-    if (sum < best_sum) {
-      best_sum = sum;
-      best = k;
-    }
+    if (!available[k]) pooled[k].clear();
   }
-  if (best < 0) return -1;
-  // Paired comparison with the best rung over the same dots: rung k is "within noise" unless
-  // its mean extra squared error exceeds significance_sigmas standard errors of the per-dot
-  // differences (the noise of the held-out estimate itself, measurement noise included).
-  const int m = static_cast<int>(pooled[best].size());
-  for (int k = 0; k < kNumLadderRungs; ++k) {
-    if (!available[k]) continue;
-    if (k == best) return k;
-    double mean = 0;
-    for (int j = 0; j < m; ++j) mean += pooled[k][j] - pooled[best][j];
-    mean /= m;
-    double var = 0;
-    for (int j = 0; j < m; ++j) var += Sqr(pooled[k][j] - pooled[best][j] - mean);
-    const double standard_error = m > 1 ? std::sqrt(var / (m - 1) / m) : 0;
-    if (mean <= significance_sigmas * standard_error) return k;
-  }
-  return best;
+  return SimplestRungWithinNoise(pooled, significance_sigmas);
 }
 
 }  // namespace thinslab

@@ -232,6 +232,16 @@ double RangeConsistencySigmaG(const PhaseFitOptions& options, const std::vector<
 
 }  // namespace
 
+bool FitEq8ToRings(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double* beta, double* g,
+                   double* tau) {
+  double log_beta = 0;
+  ceres::Problem problem;
+  ceres::Solver::Summary summary;
+  if (!SolveEq8(options, rings, &log_beta, g, tau, &problem, &summary)) return false;
+  *beta = std::exp(log_beta);
+  return true;
+}
+
 Status FitPhase(const PhaseFitOptions& options, const LaserLobeImages& images, std::vector<LaserRing>* rings,
                 PhaseFitSummary* summary) {
   const auto t0 = std::chrono::steady_clock::now();

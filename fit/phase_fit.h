@@ -79,6 +79,12 @@ struct PhaseFitSummary {
 // Gu et al. 2007 Fig. 2: dust 0.4 <= g <= 0.9, dirt 0 <= g <= 0.8, lipids 0.7 <= g <= 1.
 std::vector<std::string> ContaminantCategories(double g, double sigma_g);
 
+// Eq. 8 fitted to given rings (Ceres, Huber loss as in FitPhase; tau free with its prior when
+// options.tau_free). False when no positive lobe scale fits. Used by FitPhase and the model
+// ladder (fit/laser_lobe_ladder.h).
+bool FitEq8ToRings(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double* beta, double* g,
+                   double* tau);
+
 // Fails (Status) on bad options or input (beam not found, too few rings). A clean pane is not
 // an error: the summary says kNoMeasurableScattering.
 Status FitPhase(const PhaseFitOptions& options, const LaserLobeImages& images, std::vector<LaserRing>* rings,
