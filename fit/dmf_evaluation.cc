@@ -86,7 +86,8 @@ double NdfRelativeL2(const DmfPointFit& fit, const DmfNdfGrid& grid, const DmfTr
 }
 
 std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps,
-                                                   const std::vector<DmfTruthRegion>& regions) {
+                                                   const std::vector<DmfTruthRegion>& regions,
+                                                   double held_out_tolerance) {
   const DmfNdfGrid grid(maps.ndf_resolution);
   const bool held_out = std::any_of(slices.train.begin(), slices.train.end(), [](uint8_t t) { return t == 0; });
   std::vector<DmfRegionAccuracy> out;
@@ -105,6 +106,9 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
       }
       ++a.points;
       const DmfPointFit& f = maps.fits[p];
+      ++a.statuses[static_cast<int>(f.status)];
+      const bool ok = f.status == DmfStatus::kOk || f.status == DmfStatus::kInterpolated;
+      ++(ok ? a.ok : a.flagged);
       if (f.log_ndf.empty()) continue;
       ++a.fitted;
       alpha.push_back(f.alpha);
@@ -114,6 +118,7 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
       if (held_out) {
         const double e = DmfHeldOutError(slices, maps, p);
         if (e >= 0) held.push_back(e);
+        if (ok && e > held_out_tolerance) ++a.silent_wrong;
       }
     }
     a.median_alpha = Median(alpha);
@@ -140,7 +145,10 @@ std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
                             {"median_k_s", a.median_k_s},
                             {"true_k_s", a.true_k_s},
                             {"median_rho_d", a.median_rho_d},
-                            {"true_rho_d", a.true_rho_d}});
+                            {"true_rho_d", a.true_rho_d},
+                            {"ok", a.ok},
+                            {"flagged", a.flagged},
+                            {"ok_with_held_out_above_0.5", a.silent_wrong}});
   }
   return j.dump(2) + "\n";
 }

@@ -5,6 +5,7 @@
 // the prediction of held-out dots.
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -47,10 +48,17 @@ struct DmfRegionAccuracy {
   double median_held_out = -1;    // Captures fitted with held-out dots.
   double median_k_s = -1, true_k_s = 1;
   double median_rho_d = -1, true_rho_d = 0;
+  // Stability tally (docs/stability.md): points with status ok or interpolated, points with any
+  // other status (flagged), and ok points whose held-out error exceeds the tolerance (silent
+  // wrong answers); per status code, the number of points.
+  int ok = 0, flagged = 0, silent_wrong = 0;
+  std::map<int, int> statuses;
 };
 
+// `held_out_tolerance`: the held-out error above which an ok point counts as silently wrong.
 std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps,
-                                                   const std::vector<DmfTruthRegion>& regions);
+                                                   const std::vector<DmfTruthRegion>& regions,
+                                                   double held_out_tolerance = 0.5);
 std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy);
 
 }  // namespace thinslab
