@@ -216,7 +216,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       f.alpha = 0;
       f.smith_alpha = 0;
       std::vector<double> d(grid.num_cells(), 0.0);
-      double weight_sum = 0;
+      double weight_sum = 0, transmittance_per_k_s = 0;
       for (int k = 0; k < c.num_neighbors; ++k) {
         const int j = c.neighbors[static_cast<size_t>(p) * c.num_neighbors + k];
         const double w = c.weights[static_cast<size_t>(p) * c.num_neighbors + k];
@@ -226,6 +226,11 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         f.alpha += w * rep.alpha;
         f.smith_alpha += w * rep.smith_alpha;
         f.measured_ndf_fraction += w * rep.measured_ndf_fraction;
+        // The refracted part of the transmittance is linear in k_s for a fixed normalised NDF:
+        // each representative's, rescaled to this point's k_s and rho_d below (the integral is
+        // not evaluated per interpolated point: it would cost about as much as the
+        // interpolation). pi rho_d is the diffuse term's share.
+        transmittance_per_k_s += w * (rep.transmittance - kPi * rep.rho_d) / rep.k_s;
         for (int cell = 0; cell < grid.num_cells(); ++cell) d[cell] += w * std::exp(rep.log_ndf[cell]);
         weight_sum += w;
       }
@@ -248,7 +253,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       f.k_s = std::exp(FitLogScale(slice, f, grid, options.point, &used));
       f.num_used = used;
       f.log_rms_residual = LogRmsResidual(slice, f, grid, options.point);
-      f.transmittance = DirectionalTransmittance(f, grid, options.point.eta, slice.o);
+      f.transmittance = kPi * f.rho_d + f.k_s * transmittance_per_k_s / weight_sum;
       // An interpolated NDF is as measured as its representatives' (weighted).
       if (used == 0) {
         f.status = DmfStatus::kNoLobe;

@@ -117,6 +117,8 @@ struct DmfPointFit {
   double measured_ndf_fraction = 0;
   // Directional transmittance of the fitted model for this view, integral of R cos(theta_i)
   // d omega_i over the light hemisphere (energy conservation wants <= 1); 0 when not fitted.
+  // Interpolated points (clustered runs) take their representatives', rescaled to their own
+  // k_s and rho_d (fit/dmf_map_fit.cc).
   double transmittance = 0;
 };
 

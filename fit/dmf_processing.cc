@@ -102,7 +102,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   std::sort(by_exposure.begin(), by_exposure.end(),
             [](const FrameRecord* a, const FrameRecord* b) { return a->exposure_time_us > b->exposure_time_us; });
   bool have_geometry = false;
-  std::string geometry_error;
+  std::string geometry_error, geometry_file;
   for (const FrameRecord* f : by_exposure) {
     Image frame;
     THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *f, &frame));
@@ -116,6 +116,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     const bool any_saturated =
         std::any_of(g.dots.begin(), g.dots.end(), [](const DotRecord& d) { return d.detected && d.saturated; });
     geometry = g;
+    geometry_file = f->file;
     have_geometry = true;
     if (!any_saturated) break;
   }
@@ -126,7 +127,11 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     if (!d.saturated) radiances.push_back(d.radiance_dn_per_us);
   }
   if (radiances.empty()) {
-    return Status::Error("dot geometry: every dot is saturated in every all-dots frame: L_q cannot be measured");
+    // The dots were found only in frames where they saturate; say why the shorter ones failed.
+    return Status::Error("dot geometry: every dot is saturated in " + geometry_file +
+                         ", the all-dots frame in which they were found, so L_q cannot be measured (shorten the "
+                         "all-dots exposures or dim the dots)" +
+                         (geometry_error.empty() ? std::string() : "; in shorter exposures: " + geometry_error));
   }
   std::nth_element(radiances.begin(), radiances.begin() + radiances.size() / 2, radiances.end());
   const double median_radiance = radiances[radiances.size() / 2];

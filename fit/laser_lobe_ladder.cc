@@ -121,6 +121,7 @@ std::string LaserLadderJson(const LaserLadderResult& result) {
     rungs.push_back(r);
   }
   j["rungs"] = rungs;
+  j["parameters_saved"] = result.chosen_rung >= 0 ? result.parameters[2] - result.parameters[result.chosen_rung] : 0;
   j["frisvad_beta"] = result.frisvad_beta;
   j["gu_beta"] = result.gu_beta;
   j["gu_g"] = result.gu_g;
