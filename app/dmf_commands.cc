@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // `thinslab fit dmf CAPTURE`: dual-microfacet SVBTDF maps from a CRT dot scan (Dai et al. 2009;
 // fit/dmf_processing.h, fit/dmf_map_fit.h). Writes, atomically, into CAPTURE/fit/dmf/:
-//   maps.exr         alpha, smith_alpha, k_s, rho_d, residual, status (docs/format.md)
+//   maps.exr         alpha, smith_alpha, k_s, rho_d, residual, status, measured_ndf_fraction,
+//                    transmittance (docs/format.md)
 //   ndf_atlas.exr    channel D: the N x N NDF tile of every atlas_stride-th point
 //   *_falsecolor.png the maps; ndf_<col>_<row>.png the NDF at chosen points (Dai Fig. 6)
 //   summary.json/.txt timings per stage, status counts, peak memory; options.ini
@@ -231,7 +232,8 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     const char* name;
     int channel;
     double max;
-  } pictures[] = {{"alpha", 0, 1}, {"smith_alpha", 1, 1}, {"k_s", 2, 1.5}, {"rho_d", 3, 0.2}, {"residual", 4, 1}};
+  } pictures[] = {{"alpha", 0, 1},    {"smith_alpha", 1, 1}, {"k_s", 2, 1.5},
+                  {"rho_d", 3, 0.2},  {"residual", 4, 1},    {"measured_ndf_fraction", 6, 1}};
   for (const auto& pic : pictures) {
     FalseColorOptions color;
     color.label = pic.name;
@@ -239,6 +241,13 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     color.scale = std::max(1, 256 / std::max(maps.width, maps.height));
     THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), std::string(pic.name) + "_falsecolor.png"), image,
                                                 pic.channel, &unfitted, color));
+  }
+  {
+    FalseColorOptions color;  // Every point has a status: nothing greyed out.
+    color.label = "status";
+    color.max_value = static_cast<double>(DmfStatus::kUnphysical);
+    color.scale = std::max(1, 256 / std::max(maps.width, maps.height));
+    THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "status_falsecolor.png"), image, 5, nullptr, color));
   }
   // NDF pictures (Dai Fig. 6): fitted on the left; the true face NDF on the right where the
   // capture has ground truth and the point's region has one rough face.

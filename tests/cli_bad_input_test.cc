@@ -268,7 +268,7 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   ASSERT_EQ(sim.exit_code, 0) << sim.output;
   const RunResult fit = RunThinslab("fit dmf " + scan + " --pitch-mm 8 --cluster-fraction 0.2");
   ASSERT_EQ(fit.exit_code, 0) << fit.output;
-  for (const char* file : {"maps.exr", "ndf_atlas.exr", "alpha_falsecolor.png", "summary.json", "summary.txt",
+  for (const char* file : {"maps.exr", "ndf_atlas.exr", "alpha_falsecolor.png", "status_falsecolor.png", "summary.json", "summary.txt",
                            "options.ini"}) {
     EXPECT_TRUE(std::filesystem::exists(scan + "/fit/dmf/" + file)) << file;
   }
