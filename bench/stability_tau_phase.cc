@@ -228,7 +228,7 @@ Status WriteGChart(const std::string& path, const std::string& title, const std:
   errors.series = {error, HorizontalLine("+-tolerance (test)", kMaxAbsErrorG, x0, x1, kRed),
                    HorizontalLine("", -kMaxAbsErrorG, x0, x1, kRed)};
   PlotPanel outcome;
-  outcome.y_label = "result";
+  outcome.y_label = "result: 1 success, 0 no scattering, -1 failure";
   outcome.series = {success};
   if (!none.x.empty()) outcome.series.push_back(none);
   if (!failure.x.empty()) outcome.series.push_back(failure);
