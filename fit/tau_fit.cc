@@ -351,7 +351,8 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   //  - model: Eq. 6 is single scattering, but once-scattered light is scattered again with
   //    probability ~ albedo (1 - e^{-tau}) before it leaves the layer, so the unmodelled light
   //    is ~ albedo (1 - e^{-tau}) S. Not in Gu et al. 2007; on the simulated rig (all orders)
-  //    it matches the read-low bias of uniform layers within 30 % (docs/stability.md).
+  //    it matches the read-low bias of uniform layers within 20 % up to tau 2.5 and
+  //    underestimates it by up to 1.5x at tau 3-3.8 (docs/stability.md).
   std::vector<double> sigma_tau(n, 0.0);
   for (size_t i = 0; i < n; ++i) {
     if (status[i] != 0) continue;
