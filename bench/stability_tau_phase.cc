@@ -110,7 +110,7 @@ Status WriteTauChart(const std::string& path, const std::string& title, const st
                      const std::vector<TauPoint>& points, bool realigned) {
   PlotSeries error = Series("RMS |tau - tau_true| (status ok)", kBlue, false);
   PlotSeries sigma = Series("RMS sigma_tau (the fit's own)", kOrange, true);
-  PlotSeries aligned = Series("RMS error vs truth moved by the pose shift", kGreen, false);
+  PlotSeries aligned = Series("RMS error vs shifted truth", kGreen, false);
   PlotSeries ok = Series("ok", kBlue, true), dark = Series("dark", kGrey, true),
              saturated = Series("saturated", kOrange, true), clamped = Series("clamped + next to clamped", kRed, true),
              refused = Series("capture refused (message)", kPurple, false);
