@@ -35,7 +35,8 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
   j["message"] = s.message;
   j["grid"] = {s.width, s.height};
   j["pixels"] = {{"total", s.pixels_total}, {"fitted", s.pixels_fitted}, {"dark", s.pixels_dark},
-                 {"saturated", s.pixels_saturated}, {"outside", s.pixels_outside}, {"clamped", s.pixels_clamped}};
+                 {"saturated", s.pixels_saturated}, {"outside", s.pixels_outside}, {"clamped", s.pixels_clamped},
+                 {"next_to_clamped", s.pixels_next_to_clamped}, {"dark_noise", s.pixels_dark_noise}};
   j["outer_iterations"] = s.outer_iterations;
   j["final_max_update_tau"] = s.final_max_update_tau;
   j["rms_normalized_residual"] = s.rms_normalized_residual;
@@ -138,6 +139,7 @@ void AddFitTauOptions(OptionParser* parser, FitTauRun* run) {
   parser->AddString("reference", &fit.reference, "'frame' (clean-glass frames) or 'auto' (fit to clean regions)");
   parser->AddDouble("tau-max", &fit.tau_max, "largest tau; darker pixels are clamped and flagged");
   parser->AddDouble("min-reference-fraction", &fit.min_reference_fraction, "dark mask threshold (of median)");
+  parser->AddDouble("max-sigma-tau", &fit.max_sigma_tau, "tau noise above this: status 1 (dark)");
   parser->AddDouble("smoothness-sigma-tau", &fit.smoothness_sigma_tau, "Huber smoothness prior scale; 0 = off");
   parser->AddInt("max-outer-iterations", &fit.max_outer_iterations, "scatter fixed-point iterations");
   parser->AddDouble("kernel-max-angle-deg", &fit.kernel_max_angle_deg, "largest scattering angle modelled");

@@ -191,6 +191,7 @@ int RunFitPhase(int argc, char** argv) {
   parser.AddBool("flat-field", &options.flat_field, "divide by the board flat field if captured");
   parser.AddDouble("huber-scale", &options.huber_scale, "robust loss scale [standard errors]");
   parser.AddDouble("min-significance", &options.min_significance, "lobe detection threshold [sigma]");
+  parser.AddDouble("max-sigma-g", &options.max_sigma_g, "sigma_g above this: g not determined (failure)");
   parser.AddInt("supersample", &supersample, "rectification sub-samples per board pixel side");
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {

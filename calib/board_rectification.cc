@@ -3,9 +3,11 @@
 
 #include <glog/logging.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/camera_model.h"
+#include "core/math.h"
 
 namespace thinslab {
 
@@ -52,6 +54,32 @@ Image BoardRectifier::Rectify(const Image& image) const {
       ++n;
     }
     out.data()[p] = n > 0 ? static_cast<float>(sum / n) : 0.0f;
+  }
+  return out;
+}
+
+Image BoardRectifier::RectifyVariance(const Image& variance) const {
+  CHECK_EQ(variance.width(), camera_width_px_);
+  const int s2 = grid_.supersample * grid_.supersample;
+  Image out(grid_.width_px, grid_.height_px);
+  std::vector<int> pixels;
+  for (size_t p = 0; p < out.num_pixels(); ++p) {
+    pixels.clear();
+    for (int k = 0; k < s2; ++k) {
+      const int idx = sample_pixel_[p * s2 + k];
+      if (idx >= 0) pixels.push_back(idx);
+    }
+    if (pixels.empty()) continue;
+    std::sort(pixels.begin(), pixels.end());
+    const double n = static_cast<double>(pixels.size());
+    double sum = 0;
+    for (size_t a = 0; a < pixels.size();) {
+      size_t b = a;
+      while (b < pixels.size() && pixels[b] == pixels[a]) ++b;
+      sum += Sqr((b - a) / n) * variance.data()[pixels[a]];
+      a = b;
+    }
+    out.data()[p] = static_cast<float>(sum);
   }
   return out;
 }

@@ -29,6 +29,10 @@ class BoardRectifier {
 
   // Mean of `image` (camera-sized, single channel) over each map pixel.
   Image Rectify(const Image& image) const;
+  // Variance of Rectify(image) given the per-camera-pixel `variance` of independent pixels:
+  // sum over the distinct camera pixels j of (c_j / n)^2 variance_j, where c_j of the n
+  // sub-samples fall in pixel j.
+  Image RectifyVariance(const Image& variance) const;
   // 1 where any sub-sample of the map pixel hits a non-zero pixel of `mask`.
   Image RectifyAny(const Image& mask) const;
   // 1 where a sub-sample falls outside the camera image.

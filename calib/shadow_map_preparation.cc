@@ -145,13 +145,13 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   const BoardRectifier rectifier(camera, grid);
   maps->outside = rectifier.outside();
   maps->shadow = rectifier.Rectify(shadow.mean_dn_per_us);
-  // Sub-samples share camera pixels, so the variance of the mean is not divided by their
-  // number: conservatively, the mean of the per-sample variances.
-  maps->shadow_variance = rectifier.Rectify(shadow.variance);
+  // Sub-samples share camera pixels: the variance of their mean counts each distinct camera
+  // pixel once, with the weight of the sub-samples it holds (camera pixels are independent).
+  maps->shadow_variance = rectifier.RectifyVariance(shadow.variance);
   Image saturated = shadow.saturated;
   if (reference.count > 0) {
     maps->reference = rectifier.Rectify(reference.mean_dn_per_us);
-    maps->reference_variance = rectifier.Rectify(reference.variance);
+    maps->reference_variance = rectifier.RectifyVariance(reference.variance);
     for (size_t i = 0; i < saturated.data().size(); ++i) {
       if (reference.saturated.data()[i] > 0) saturated.data()[i] = 1;
     }

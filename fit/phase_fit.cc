@@ -34,6 +34,8 @@ bool PhaseFitOptions::Check(std::string* error) const {
     msg << "PhaseFitOptions::huber_scale = " << huber_scale << ". Violated constraint: > 0";
   } else if (!(min_significance > 0)) {
     msg << "PhaseFitOptions::min_significance = " << min_significance << ". Violated constraint: > 0";
+  } else if (!(max_sigma_g > 0)) {
+    msg << "PhaseFitOptions::max_sigma_g = " << max_sigma_g << ". Violated constraint: > 0";
   } else {
     return true;
   }
@@ -394,6 +396,20 @@ Status FitPhase(const PhaseFitOptions& options, const LaserLobeImages& images, s
     summary->sigma_tau = std::sqrt(std::max(var, 0.0)) * scale;
   }
   summary->categories = ContaminantCategories(g, summary->sigma_g);
+  // A noisy lobe (a short bracket, read noise) can leave g anywhere in [-1, 1]; the covariance
+  // and jackknife say so, and the result must too rather than report a number.
+  if (!(summary->sigma_g <= options.max_sigma_g)) {
+    summary->result = PhaseFitSummary::Result::kFailure;
+    std::ostringstream msg;
+    msg.precision(3);
+    msg << "g is not determined by the rings: g = " << g << " +- " << summary->sigma_g << " (covariance "
+        << summary->sigma_g_covariance << ", jackknife " << summary->sigma_g_jackknife << ", angle range "
+        << summary->sigma_g_range << ") exceeds max_sigma_g = " << options.max_sigma_g
+        << "; the lobe is too noisy: lengthen the exposure bracket or average more frames";
+    summary->message = msg.str();
+    finish();
+    return Status::Error("FitPhase: " + summary->message);
+  }
   summary->result = PhaseFitSummary::Result::kSuccess;
   summary->message = std::abs(g) > 0.985 ? "g is at its bound (|g| > 0.985): the lobe is narrower than the rings resolve"
                                          : "ok";

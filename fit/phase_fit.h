@@ -35,6 +35,9 @@ struct PhaseFitOptions {
   double huber_scale = 2.0;    // Huber loss scale on ring residuals, in standard errors.
   // Below this significance (sigma) of the lobe over zero, the result is "no measurable scattering".
   double min_significance = 5;
+  // Above this sigma_g, g is not determined (kFailure): +-2 sigma would then span more than
+  // most of a Gu Fig. 2 category range (0.5-0.8 wide), so no category could be told apart.
+  double max_sigma_g = 0.2;
 
   bool Check(std::string* error) const;
 };

@@ -30,6 +30,8 @@ bool TauFitOptions::Check(std::string* error) const {
     msg << "TauFitOptions::tau_max = " << tau_max << ". Violated constraint: (0, 20]";
   } else if (!(min_reference_fraction > 0 && min_reference_fraction < 1)) {
     msg << "TauFitOptions::min_reference_fraction = " << min_reference_fraction << ". Violated constraint: (0, 1)";
+  } else if (!(max_sigma_tau > 0)) {
+    msg << "TauFitOptions::max_sigma_tau = " << max_sigma_tau << ". Violated constraint: > 0";
   } else if (!(smoothness_sigma_tau >= 0)) {
     msg << "TauFitOptions::smoothness_sigma_tau = " << smoothness_sigma_tau << ". Violated constraint: >= 0";
   } else if (max_outer_iterations < 1) {
@@ -62,10 +64,12 @@ std::string TauFitSummary::FullReport() const {
       << "message: " << message << "\n"
       << "grid: " << width << " x " << height << "\n"
       << "pixels fitted:    " << pixels_fitted << " (" << pct(pixels_fitted) << " %)\n"
-      << "pixels dark:      " << pixels_dark << " (" << pct(pixels_dark) << " %)\n"
+      << "pixels dark:      " << pixels_dark << " (" << pct(pixels_dark) << " %; " << pixels_dark_noise
+      << " of them because sigma_tau > max_sigma_tau)\n"
       << "pixels saturated: " << pixels_saturated << " (" << pct(pixels_saturated) << " %)\n"
       << "pixels outside:   " << pixels_outside << " (" << pct(pixels_outside) << " %)\n"
       << "pixels clamped:   " << pixels_clamped << " (" << pct(pixels_clamped) << " %)\n"
+      << "pixels next to clamped: " << pixels_next_to_clamped << " (" << pct(pixels_next_to_clamped) << " %)\n"
       << "final max tau update: " << final_max_update_tau << "\n"
       << "rms normalized residual: " << rms_normalized_residual << "\n"
       << "mean scattered fraction of measured light: " << mean_scattered_fraction << "\n"
@@ -341,17 +345,63 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   const auto t_refine = Clock::now();
   summary->refine_s = Seconds(t_plain, t_refine);
 
+  // Final status codes and sigma_tau. Gu Eq. 5 gives d tau = -d(m - S) / e^{-tau}, with S held
+  // fixed (its noise is averaged over the whole kernel). Two terms:
+  //  - noise: sigma_m / e^{-tau}; above max_sigma_tau the pixel is dark;
+  //  - model: Eq. 6 is single scattering, but once-scattered light is scattered again with
+  //    probability ~ albedo (1 - e^{-tau}) before it leaves the layer, so the unmodelled light
+  //    is ~ albedo (1 - e^{-tau}) S. Not in Gu et al. 2007; on the simulated rig (all orders)
+  //    it matches the read-low bias of uniform layers within 20 % up to tau 2.5 and
+  //    underestimates it by up to 1.5x at tau 3-3.8 (docs/stability.md).
+  std::vector<double> sigma_tau(n, 0.0);
+  for (size_t i = 0; i < n; ++i) {
+    if (status[i] != 0) continue;
+    const double transmission = std::max(std::exp(-tau[i]), min_ratio);
+    const double sigma_noise = sigma_m[i] / transmission;
+    const double unmodelled = options.layer_albedo * (1 - std::exp(-std::max(tau[i], 0.0))) * std::max(scattered[i], 0.0);
+    sigma_tau[i] = std::hypot(sigma_noise, unmodelled / transmission);
+    if (tau[i] >= options.tau_max - 1e-9) {
+      status[i] = static_cast<uint8_t>(TauPixelStatus::kClamped);
+    } else if (sigma_noise > options.max_sigma_tau) {
+      status[i] = static_cast<uint8_t>(TauPixelStatus::kDark);
+      ++summary->pixels_dark_noise;
+    }
+  }
+  // Not in Gu et al. 2007: a pixel beside a clamped one is a mix of the dark side and its other
+  // neighbours (camera pixels straddle the edge, and the rectifier averages them), and
+  // -ln(mean transmission) is dominated by the bright part, so its tau is a lower bound only.
+  std::vector<uint8_t> final_status = status;
+  const uint8_t clamped_code = static_cast<uint8_t>(TauPixelStatus::kClamped);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      if (status[i] != 0) continue;
+      // 8-neighbourhood: the corner pixel of a dense speck has only diagonal clamped neighbours.
+      bool beside_clamped = false;
+      for (int dy = -1; dy <= 1 && !beside_clamped; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int nx = x + dx, ny = y + dy;
+          if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+          if (status[static_cast<size_t>(ny) * w + nx] == clamped_code) beside_clamped = true;
+        }
+      }
+      if (beside_clamped) final_status[i] = static_cast<uint8_t>(TauPixelStatus::kNextToClamped);
+    }
+  }
+
   // Outputs, counts and residuals.
-  maps->tau = Image(w, h, {"tau", "tau_plain", "status"});
+  maps->tau = Image(w, h, {"tau", "tau_plain", "status", "sigma_tau"});
   double sum_sq = 0, sum_scatter = 0;
   for (size_t i = 0; i < n; ++i) {
     const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
-    uint8_t code = status[i];
-    double value = 0, plain = 0;
-    if (code == 0) {
+    const uint8_t code = final_status[i];
+    double value = 0, plain = 0, sigma = 0;
+    const bool measured = code == 0 || code == clamped_code ||
+                          code == static_cast<uint8_t>(TauPixelStatus::kNextToClamped);
+    if (measured) {
       value = tau[i];
       plain = tau_plain.data()[i];
-      if (value >= options.tau_max - 1e-9) code = static_cast<uint8_t>(TauPixelStatus::kClamped);
+      sigma = sigma_tau[i];
       const double model = std::exp(-value) + scattered[i];
       sum_sq += Sqr((m[i] - model) / sigma_m[i]);
       sum_scatter += scattered[i] / std::max(m[i], 1e-6);
@@ -362,19 +412,26 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       case TauPixelStatus::kSaturated: ++summary->pixels_saturated; break;
       case TauPixelStatus::kOutside: ++summary->pixels_outside; break;
       case TauPixelStatus::kClamped: ++summary->pixels_clamped; value = plain = options.tau_max; break;
+      case TauPixelStatus::kNextToClamped: ++summary->pixels_next_to_clamped; break;
     }
-    CHECK(std::isfinite(value) && std::isfinite(plain));
+    CHECK(std::isfinite(value) && std::isfinite(plain) && std::isfinite(sigma));
     maps->tau.at(x, y, 0) = static_cast<float>(value);
     maps->tau.at(x, y, 1) = static_cast<float>(plain);
     maps->tau.at(x, y, 2) = static_cast<float>(code);
+    maps->tau.at(x, y, 3) = static_cast<float>(sigma);
   }
-  const int64_t measured = summary->pixels_fitted + summary->pixels_clamped;
+  const int64_t measured = summary->pixels_fitted + summary->pixels_clamped + summary->pixels_next_to_clamped;
   summary->rms_normalized_residual = measured > 0 ? std::sqrt(sum_sq / measured) : 0;
   summary->mean_scattered_fraction = measured > 0 ? sum_scatter / measured : 0;
   summary->total_s = Seconds(t_start, Clock::now());
   if (summary->pixels_fitted == 0) {
     summary->result = TauFitSummary::Result::kFailure;
-    summary->message = "no pixel could be fitted (all masked: dark, saturated or outside the camera view)";
+    std::ostringstream msg;
+    msg << "no pixel could be fitted (of " << n << ": " << summary->pixels_dark << " dark, "
+        << summary->pixels_saturated << " saturated, " << summary->pixels_outside << " outside the camera view, "
+        << summary->pixels_clamped << " clamped at tau_max = " << options.tau_max << ", "
+        << summary->pixels_next_to_clamped << " next to clamped)";
+    summary->message = msg.str();
     return Status::Error("FitTau: " + summary->message);
   }
   summary->result = TauFitSummary::Result::kSuccess;

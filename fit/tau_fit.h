@@ -27,6 +27,9 @@ enum class TauPixelStatus : uint8_t {
   kSaturated = 2,   // A contributing raw pixel saturated.
   kOutside = 3,     // Board point not seen by the camera.
   kClamped = 4,     // Transmission below e^{-tau_max}: tau set to tau_max.
+  // Next to a clamped pixel: the camera pixels behind this one also see the bright side of the
+  // edge, so tau reads far too low (a lower bound; docs/stability.md measured 2.5 for 5).
+  kNextToClamped = 5,
 };
 
 struct TauFitOptions {
@@ -43,6 +46,9 @@ struct TauFitOptions {
   double tau_max = 4.0;
   // Pixels whose reference is below this fraction of the median reference are dark.
   double min_reference_fraction = 0.1;
+  // Pixels whose tau noise (the shot and read noise part of sigma_tau) exceeds this are dark
+  // too: under low light the map is noise, not a measurement (docs/stability.md).
+  double max_sigma_tau = 0.05;
   // Standard deviation (in tau) of neighbour differences under the smoothness prior, beyond
   // which the Huber loss turns linear. 0 disables the prior (closed-form per-pixel update).
   // Off by default: on the simulated rig it did not lower the error at default or at 10x less
@@ -57,7 +63,7 @@ struct TauFitOptions {
 };
 
 struct TauMaps {
-  Image tau;        // Channels: tau, tau_plain, status.
+  Image tau;        // Channels: tau, tau_plain, status, sigma_tau.
 };
 
 struct TauFitSummary {
@@ -66,7 +72,8 @@ struct TauFitSummary {
   std::string message = "FitTau was not called.";
   int width = 0, height = 0;
   int64_t pixels_total = 0, pixels_fitted = 0, pixels_dark = 0, pixels_saturated = 0,
-          pixels_outside = 0, pixels_clamped = 0;
+          pixels_outside = 0, pixels_clamped = 0, pixels_next_to_clamped = 0;
+  int64_t pixels_dark_noise = 0;  // Of pixels_dark: flagged because sigma_tau > max_sigma_tau.
   int outer_iterations = 0;
   double final_max_update_tau = 0;
   double rms_normalized_residual = 0;  // RMS of (m - model) / sigma_m over fitted pixels.
@@ -79,7 +86,9 @@ struct TauFitSummary {
 };
 
 // Fills maps->tau (width x height of the rectified grid). Never writes NaN: pixels that
-// cannot be measured get tau = 0 (or tau_max when clamped) and a status code.
+// cannot be measured get tau = 0 (or tau_max when clamped) and a status code; sigma_tau is the
+// 1-sigma uncertainty of tau: the frames' shot and read noise plus the light Eq. 6 leaves out
+// (multiple scattering), 0 where status is 1-3.
 Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, TauMaps* maps,
               TauFitSummary* summary);
 

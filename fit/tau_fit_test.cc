@@ -117,12 +117,41 @@ TEST(FitTau, MasksAndNeverNaN) {
   EXPECT_EQ(maps.tau.at(3, 0, 2), static_cast<float>(TauPixelStatus::kDark));
   EXPECT_EQ(maps.tau.at(4, 0, 2), static_cast<float>(TauPixelStatus::kClamped));
   EXPECT_EQ(maps.tau.at(4, 0, 0), static_cast<float>(options.tau_max));
+  // The clamped pixel's measurable 8-neighbours are lower bounds only (status 5).
+  for (const auto& [x, y] : {std::pair{5, 0}, {3, 1}, {4, 1}, {5, 1}}) {
+    EXPECT_EQ(maps.tau.at(x, y, 2), static_cast<float>(TauPixelStatus::kNextToClamped)) << x << "," << y;
+  }
   for (float v : maps.tau.data()) EXPECT_TRUE(std::isfinite(v));
   EXPECT_EQ(summary.pixels_outside, 1);
   EXPECT_EQ(summary.pixels_saturated, 1);
   EXPECT_EQ(summary.pixels_dark, 2);
   EXPECT_EQ(summary.pixels_clamped, 1);
-  EXPECT_EQ(summary.pixels_fitted, 95);
+  EXPECT_EQ(summary.pixels_next_to_clamped, 4);
+  EXPECT_EQ(summary.pixels_fitted, 91);
+}
+
+// sigma_tau is the propagated frame noise (Gu Eq. 5: sigma_tau = sigma_m / e^{-tau} without
+// scattered light), and a pixel whose noise exceeds max_sigma_tau is dark, not fitted.
+TEST(FitTau, NoisyPixelsAreDarkWithTheirSigma) {
+  const int w = 8, h = 8;
+  RectifiedShadowMaps data = MakeData(w, h);
+  for (auto& v : data.shadow.data()) v = 50.0f;
+  data.shadow_variance.at(2, 2) = 100.0f;  // sigma_m = 0.1, sigma_tau = 0.2.
+  TauFitOptions options;
+  options.refine_scattering = false;
+  TauMaps maps;
+  TauFitSummary summary;
+  ASSERT_TRUE(FitTau(options, data, &maps, &summary).ok());
+  EXPECT_EQ(maps.tau.at(2, 2, 2), static_cast<float>(TauPixelStatus::kDark));
+  EXPECT_EQ(summary.pixels_dark_noise, 1);
+  // m = 0.5: var_m = (1e-4 + 0.25e-4) / 100^2, sigma_tau = sqrt(var_m) / 0.5.
+  EXPECT_NEAR(maps.tau.at(0, 0, 3), std::sqrt(1.25e-4) / 100 / 0.5, 1e-6);
+  options.max_sigma_tau = 0.5;
+  ASSERT_TRUE(FitTau(options, data, &maps, &summary).ok());
+  EXPECT_EQ(maps.tau.at(2, 2, 2), static_cast<float>(TauPixelStatus::kOk));
+  EXPECT_NEAR(maps.tau.at(2, 2, 3), 0.2, 1e-3);
+  options.max_sigma_tau = 0;
+  EXPECT_FALSE(FitTau(options, data, &maps, &summary).ok());
 }
 
 // Auto reference: a quadratic illumination and half the pane clean.
