@@ -141,7 +141,7 @@ Status Chart(const std::string& path, const std::vector<Outcome>& outcomes, cons
   wrong.color_bgr = 0xd62728;
   refused.label = "capture refused (clear error)";
   refused.color_bgr = 0x000000;
-  held.label = "median held-out error, fitted points (flagged too)";
+  held.label = "median held-out, all fitted points";
   held.line = true;
   held.color_bgr = 0x9467bd;
   tolerance.label = "tolerance";
@@ -174,7 +174,8 @@ Status Chart(const std::string& path, const std::vector<Outcome>& outcomes, cons
   if (!refused.x.empty()) shares.series.push_back(refused);
   shares.height_weight = 1.4;
   PlotPanel errors;
-  errors.y_label = "held-out in-lobe relative RMS";
+  errors.y_label = "held-out in-lobe relative RMS (log)";
+  errors.log_y = true;
   errors.series = {held, tolerance};
   PlotOptions options;
   options.title = "Dual-microfacet fit stability: " + axis;

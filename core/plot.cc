@@ -126,8 +126,15 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
     }
     std::vector<double> yt;
     if (panel.log_y) {
+      // Decades, plus 2 and 5 when the axis spans few decades (else a panel inside one decade
+      // would have no tick at all).
+      const bool fine = y_hi - y_lo < 3;
       for (double e = std::floor(y_lo); e <= y_hi; e += 1) {
-        if (e >= y_lo) yt.push_back(std::pow(10.0, e));
+        for (double m : {1.0, 2.0, 5.0}) {
+          if (m != 1.0 && !fine) continue;
+          const double t = m * std::pow(10.0, e);
+          if (std::log10(t) >= y_lo && std::log10(t) <= y_hi) yt.push_back(t);
+        }
       }
     } else {
       yt = Ticks(y_lo, y_hi, 5);
