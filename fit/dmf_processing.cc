@@ -129,8 +129,8 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   if (radiances.empty()) {
     // The dots were found only in frames where they saturate; say why the shorter ones failed.
     return Status::Error("dot geometry: every dot is saturated in " + geometry_file +
-                         ", the all-dots frame in which they were found, so L_q cannot be measured (shorten the "
-                         "all-dots exposures or dim the dots)" +
+                         ", the all-dots frame in which they were found, so L_q cannot be measured (the all-dots "
+                         "bracket needs an exposure in which the dots are found and not saturated)" +
                          (geometry_error.empty() ? std::string() : "; in shorter exposures: " + geometry_error));
   }
   std::nth_element(radiances.begin(), radiances.begin() + radiances.size() / 2, radiances.end());
