@@ -376,6 +376,11 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddInt("ndf-resolution", &run.fit.point.ndf_resolution, "N of the N x N NDF grid");
   parser.AddDouble("smoothness", &run.fit.point.smoothness, "weight of the Eq. 17 Laplacian rows");
   parser.AddBool("fit-smith", &run.fit.point.fit_smith_alpha, "fit the Smith roughness (Levenberg-Marquardt)");
+  parser.AddDouble("min-measured-ndf-fraction", &run.fit.point.min_measured_ndf_fraction,
+                   "below this measured share of the fitted NDF: status undersampled");
+  parser.AddDouble("max-transmittance", &run.fit.point.max_transmittance,
+                   "above this directional transmittance of the fit: status unphysical");
+  parser.AddDouble("max-k-s", &run.fit.point.max_k_s, "above this k_s: status unphysical");
   parser.AddDouble("cluster-fraction", &run.cluster_fraction, "k-means representatives per point; 0 = fit every point");
   parser.AddInt("neighbors", &run.fit.clustering.num_neighbors, "representatives per interpolated point (Eq. 20)");
   parser.AddBool("hold-out", &run.processing.hold_out, "hold out every other dot from the fit");

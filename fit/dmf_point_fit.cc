@@ -133,7 +133,6 @@ double LookupStencil(const DmfNdfGrid::Stencil& s, const std::vector<double>& lo
   return v;
 }
 
-// ln of the predicted rho of a row (Eq. 11 in logarithms), D unnormalised.
 // DmfPointFit::measured_ndf_fraction: the projected integral of D over the cells some row's
 // stencil touches, over the whole integral `total`.
 double MeasuredNdfFraction(const std::vector<Row>& rows, const DmfNdfGrid& grid, const std::vector<double>& log_d,
@@ -150,6 +149,7 @@ double MeasuredNdfFraction(const std::vector<Row>& rows, const DmfNdfGrid& grid,
   return std::min(1.0, grid.ProjectedIntegral(measured) / total);
 }
 
+// ln of the predicted rho of a row (Eq. 11 in logarithms), D unnormalised.
 double LogPrediction(const Row& r, const std::vector<double>& log_d, double alpha) {
   return alpha * (r.log_a_top + r.log_g_top + LookupStencil(r.top, log_d)) +
          (1 - alpha) * (r.log_a_bottom + r.log_g_bottom + LookupStencil(r.bottom, log_d));
@@ -478,10 +478,6 @@ double PredictDualMicrofacet(const DmfPointFit& fit, const DmfNdfGrid& grid, dou
   else if (top > 0 && bottom > 0) rho = std::exp(fit.alpha * std::log(top) + (1 - fit.alpha) * std::log(bottom));
   return fit.rho_d + fit.k_s * rho;
 }
-
-}  // namespace thinslab
-
-namespace thinslab {
 
 double DirectionalTransmittance(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& o) {
   if (fit.log_ndf.empty()) return 0;
