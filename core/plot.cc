@@ -38,6 +38,21 @@ std::vector<double> Ticks(double lo, double hi, int target) {
   return ticks;
 }
 
+// Ticks of a log10 axis spanning [lo, hi] in log10 units: the decades, plus 2 and 5 when the
+// axis spans fewer than 3 decades (else an axis inside one decade would have no tick at all).
+std::vector<double> LogTicks(double lo, double hi) {
+  const bool fine = hi - lo < 3;
+  std::vector<double> ticks;
+  for (double e = std::floor(lo); e <= hi; e += 1) {
+    for (double m : {1.0, 2.0, 5.0}) {
+      if (m != 1.0 && !fine) continue;
+      const double t = m * std::pow(10.0, e);
+      if (std::log10(t) >= lo && std::log10(t) <= hi) ticks.push_back(t);
+    }
+  }
+  return ticks;
+}
+
 }  // namespace
 
 Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panels, const PlotOptions& options) {
@@ -104,15 +119,7 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
     // Grid, ticks.
     std::vector<double> xt;
     if (options.log_x) {
-      // Decades, plus 2 and 5 when the axis spans few decades.
-      const bool fine = x_hi - x_lo < 3;
-      for (double e = std::floor(x_lo); e <= x_hi; e += 1) {
-        for (double m : {1.0, 2.0, 5.0}) {
-          if (m != 1.0 && !fine) continue;
-          const double t = m * std::pow(10.0, e);
-          if (std::log10(t) >= x_lo && std::log10(t) <= x_hi) xt.push_back(t);
-        }
-      }
+      xt = LogTicks(x_lo, x_hi);
     } else {
       xt = Ticks(x_lo, x_hi, 8);
     }
@@ -126,16 +133,7 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
     }
     std::vector<double> yt;
     if (panel.log_y) {
-      // Decades, plus 2 and 5 when the axis spans few decades (else a panel inside one decade
-      // would have no tick at all).
-      const bool fine = y_hi - y_lo < 3;
-      for (double e = std::floor(y_lo); e <= y_hi; e += 1) {
-        for (double m : {1.0, 2.0, 5.0}) {
-          if (m != 1.0 && !fine) continue;
-          const double t = m * std::pow(10.0, e);
-          if (std::log10(t) >= y_lo && std::log10(t) <= y_hi) yt.push_back(t);
-        }
-      }
+      yt = LogTicks(y_lo, y_hi);
     } else {
       yt = Ticks(y_lo, y_hi, 5);
     }
