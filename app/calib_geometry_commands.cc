@@ -18,6 +18,7 @@
 #include "calib/dot_geometry.h"
 #include "calib/plane_pose.h"
 #include "calib/rig_io.h"
+#include "calib/session_calibration.h"
 #include "core/file.h"
 #include "core/math.h"
 #include "core/session_io.h"
@@ -149,9 +150,6 @@ Status SessionCamera(const std::string& session_dir, const Session& session, con
   *camera = *cam;
   THINSLAB_RETURN_IF_ERROR(ReadRigCalibrationIfExists(rig_path, rig));
   if (!with_pose) rig->pose.present = false;
-  if (rig->camera.present && rig->camera.camera_id != camera_id) {
-    return Status::Error(rig_path + ": camera.id is '" + rig->camera.camera_id + "', the frames use '" + camera_id + "'");
-  }
   return ApplyRigCalibration(*rig, camera).WithContext(rig_path);
 }
 
@@ -295,6 +293,10 @@ int RunCalibDots(int argc, char** argv) {
   parser.AddInt("window-margin-px", &options.window_margin_px, "centroid window margin around each blob [px]");
   parser.AddString("kind", &kind, "frame kind of the all-dots frames");
   parser.AddString("rig", &rig_path, "rig.json with intrinsics and pose (default SESSION/calib/rig.json)");
+  std::string response_path;
+  parser.AddString("response", &response_path,
+                   "response.json that linearises the frames, or 'linear' (default SESSION/calib/response.json if "
+                   "present)");
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
@@ -343,8 +345,15 @@ int RunCalibDots(int argc, char** argv) {
     }
     std::vector<Eigen::Vector2d> displayed;
     for (const PatternSpec::Dot& d : spec.dots) displayed.emplace_back(d.x_px, d.y_px);
+    // L_q in linear DN per microsecond, as the fits' HDR merges of the dot frames.
+    CameraResponse response;
+    std::string response_file;
+    THINSLAB_RETURN_IF_ERROR(LoadCameraResponse(session_dir, response_path, camera, &response, &response_file));
+    const CameraResponse* linearise = response_file.empty() ? nullptr : &response;
+    LinearizeFrame(linearise, &image);
+    const double linear_saturation = linearise != nullptr && saturation > 0 ? response.Linearize(saturation) : saturation;
     DotGeometryResult result;
-    THINSLAB_RETURN_IF_ERROR(CalibrateDotGeometry(image, chosen->exposure_time_us, saturation, camera,
+    THINSLAB_RETURN_IF_ERROR(CalibrateDotGeometry(image, chosen->exposure_time_us, linear_saturation, camera,
                                                   session.rig.monitor, displayed, options, &result)
                                  .WithContext(JoinPath(session_dir, chosen->file)));
     RigCalibration out;

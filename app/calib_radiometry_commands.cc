@@ -19,6 +19,7 @@
 #include "calib/hdr_merge.h"
 #include "calib/response_io.h"
 #include "calib/response_recovery.h"
+#include "calib/session_calibration.h"
 #include "core/exr_io.h"
 #include "core/file.h"
 #include "core/session_io.h"
@@ -89,32 +90,6 @@ std::vector<Group> GroupFrames(const Session& session, const CameraInfo& camera,
   std::vector<Group> out;
   for (auto& [name, g] : groups) out.push_back(std::move(g));
   return out;
-}
-
-// Response file: --response PATH, else SESSION/calib/response.json if present, else linear.
-Status LoadResponse(const std::string& session_dir, const std::string& path_option, const CameraInfo& camera,
-                    CameraResponse* response, bool* have) {
-  *have = false;
-  std::string path = path_option;
-  if (path == "linear") return Status::Ok();
-  if (path.empty()) {
-    path = JoinPath(JoinPath(session_dir, "calib"), "response.json");
-    if (!FileExists(path)) return Status::Ok();
-  }
-  THINSLAB_RETURN_IF_ERROR(ReadResponse(path, response));
-  if (!response->camera_id.empty() && response->camera_id != camera.id) {
-    return Status::Error(path + ": camera: '" + response->camera_id + "', but the session's camera is '" + camera.id + "'");
-  }
-  if (response->bit_depth != 0 && response->bit_depth != camera.bit_depth) {
-    return Status::Error(path + ": bit_depth: " + std::to_string(response->bit_depth) + ", but camera '" + camera.id +
-                         "' has bit_depth " + std::to_string(camera.bit_depth));
-  }
-  if (std::abs(response->black_level_dn - camera.black_level_dn) > 1e-9) {
-    return Status::Error(path + ": black_level_dn: " + std::to_string(response->black_level_dn) + ", but camera '" +
-                         camera.id + "' has " + std::to_string(camera.black_level_dn));
-  }
-  *have = true;
-  return Status::Ok();
 }
 
 void AddProvenance(Image* image, const std::string& session_dir, const std::string& options_ini) {
@@ -264,8 +239,9 @@ int RunCalibHdr(int argc, char** argv) {
   status = FindCamera(session_dir, session, camera_id, &camera);
   if (!status.ok()) return Fail(status);
   CameraResponse response;
-  bool have_response = false;
-  status = LoadResponse(session_dir, response_path, *camera, &response, &have_response);
+  std::string response_file;
+  status = LoadCameraResponse(session_dir, response_path, *camera, &response, &response_file);
+  const bool have_response = !response_file.empty();
   if (!status.ok()) return Fail(status);
   const std::vector<Group> groups = GroupFrames(session, *camera, kind);
   if (groups.empty()) {
@@ -345,8 +321,9 @@ int RunCalibFlat(int argc, char** argv) {
   if (!status.ok()) return Fail(status);
   if (session.rig.cameras.empty()) return Fail(Status::Error(session_dir + ": rig.cameras: no camera"));
   CameraResponse response;
-  bool have_response = false;
-  status = LoadResponse(session_dir, response_path, session.rig.cameras[0], &response, &have_response);
+  std::string response_file;
+  status = LoadCameraResponse(session_dir, response_path, session.rig.cameras[0], &response, &response_file);
+  const bool have_response = !response_file.empty();
   if (!status.ok()) return Fail(status);
   Image flat;
   FlatFieldSummary summary;

@@ -5,6 +5,8 @@
 
 #include <string>
 
+#include "calib/laser_lobe_preparation.h"
+#include "calib/session_calibration.h"
 #include "core/status.h"
 #include "fit/laser_lobe_ladder.h"
 #include "fit/phase_fit.h"
@@ -41,6 +43,7 @@ struct FitTauRun {
   TauFitOptions fit;
   int supersample = 4;
   double board_distance_m = 0;  // 0: from the manifest.
+  SessionCalibrationOptions calibration;  // CAPTURE/calib/ files applied (calib/session_calibration.h).
   std::string options_ini;      // Effective options, written as options.ini.
 };
 Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,
@@ -49,7 +52,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
 // `fit phase`: reads a laser-lobe session, fits Gu Eq. 8 and writes <out_dir>/{summary.json,
 // summary.txt, rings.csv, lobe_plot.png, options.ini} atomically.
 Status FitPhasePipeline(const std::string& session_dir, const std::string& out_dir, const PhaseFitOptions& options,
-                        int supersample, const std::string& options_ini, PhaseFitSummary* summary,
+                        const LaserLobePreparationOptions& preparation, const std::string& options_ini, PhaseFitSummary* summary,
                         std::vector<LaserRing>* rings, LaserLadderResult* ladder = nullptr);
 
 // Adds the sim rig and session options to a parser (used by `sim shadow-maps` and `demo`).

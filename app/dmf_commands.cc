@@ -16,6 +16,7 @@
 #include <map>
 #include <sstream>
 
+#include "app/calibration_options.h"
 #include "app/commands.h"
 #include "app/option_parser.h"
 #include "core/exr_io.h"
@@ -302,6 +303,8 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["points_fitted_directly"] = maps.num_fitted;
   j["status_counts"] = counts;
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
+  j["dot_geometry_source"] = processing.dot_geometry_source;
+  j["calibration"] = CalibrationSummaryJson(processing.calibration);
   j["slice_memory_bytes"] = processing.slice_bytes;
   j["peak_memory_mib"] = PeakResidentMemoryMiB();
   j["timings_s"] = {{"dot_geometry", processing.geometry_s},
@@ -331,6 +334,8 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   txt << "dual-microfacet fit of " << session_dir << ": " << maps.width << " x " << maps.height << " points, "
       << processing.grid_nx << " x " << processing.grid_ny << " dots, NDF " << n << " x " << n << ", eta "
       << run.fit.point.eta << "\n";
+  txt << "calibration: " << processing.calibration.Describe() << "; dot geometry from "
+      << processing.dot_geometry_source << "\n";
   txt << "fitted directly: " << maps.num_fitted << (run.fit.cluster ? " representatives" : " points") << "\n";
   for (const auto& [name, count] : counts) txt << "  " << name << ": " << count << "\n";
   txt << "time: processing " << processing.total_s << " s (dots " << processing.geometry_s << " s, HDR/Eq. 12 "
@@ -384,7 +389,9 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddDouble("cluster-fraction", &run.cluster_fraction, "k-means representatives per point; 0 = fit every point");
   parser.AddInt("neighbors", &run.fit.clustering.num_neighbors, "representatives per interpolated point (Eq. 20)");
   parser.AddBool("hold-out", &run.processing.hold_out, "hold out every other dot from the fit");
-  parser.AddDouble("dot-radius-px", &run.processing.dot_radius_px, "radius of a displayed dot [monitor px]");
+  parser.AddDouble("dot-radius-px", &run.processing.dot_radius_px,
+                   "radius of a displayed dot [monitor px] (rig.json's when it holds the dot calibration)");
+  AddCalibrationOptions(&parser, &run.processing.calibration);
   parser.AddInt("threads", &run.fit.num_threads, "threads");
   parser.AddInt("atlas-stride", &run.atlas_stride, "NDF atlas keeps every n-th point; 0 = at most 64 x 64 tiles");
   parser.AddString("ndf-pixels", &run.ndf_pixels, "points for NDF pictures, '<col>,<row>;...'");

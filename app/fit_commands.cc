@@ -5,6 +5,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "app/calibration_options.h"
 #include "app/commands.h"
 #include "app/option_parser.h"
 #include "calib/shadow_map_preparation.h"
@@ -41,6 +42,7 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
   j["final_max_update_tau"] = s.final_max_update_tau;
   j["rms_normalized_residual"] = s.rms_normalized_residual;
   j["mean_scattered_fraction"] = s.mean_scattered_fraction;
+  j["calibration"] = CalibrationSummaryJson(data.calibration);
   j["frames"] = {{"shadow", data.num_shadow_frames}, {"reference", data.num_reference_frames},
                  {"dark", data.num_dark_frames}};
   j["timings_s"] = {{"plain", s.plain_s}, {"refine", s.refine_s}, {"fit_total", s.total_s}};
@@ -57,6 +59,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   ShadowMapPreparationOptions prep_options;
   prep_options.supersample = run.supersample;
   prep_options.board_distance_m = run.board_distance_m;
+  prep_options.calibration = run.calibration;
   RectifiedShadowMaps data;
   THINSLAB_RETURN_IF_ERROR(PrepareShadowMaps(session_dir, session, prep_options, &data));
   int64_t in_view = 0, saturated = 0;
@@ -86,7 +89,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   tau.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
   tau.attributes()["git_hash"] = THINSLAB_GIT_HASH;
   tau.attributes()["options_digest"] = "fnv1a64:" + Digest(run.options_ini);
-  tau.attributes()["cam_from_sample"] = RigidToJson(session.rig.cameras[0].cam_from_sample);
+  tau.attributes()["cam_from_sample"] = RigidToJson(data.camera.cam_from_sample);
   tau.attributes()["source_session"] = session_dir;
   tau.attributes()["region_min_m"] = PointToJson(sample.region_min_m);
   tau.attributes()["region_max_m"] = PointToJson(sample.region_max_m);
@@ -146,6 +149,7 @@ void AddFitTauOptions(OptionParser* parser, FitTauRun* run) {
   parser->AddInt("threads", &fit.num_threads, "threads for Ceres");
   parser->AddInt("supersample", &run->supersample, "rectification samples per pixel side");
   parser->AddDouble("board-distance-m", &run->board_distance_m, "override of the manifest's board distance [m]");
+  AddCalibrationOptions(parser, &run->calibration);
 }
 
 int RunFit(int argc, char** argv) {

@@ -10,6 +10,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "app/calibration_options.h"
 #include "app/commands.h"
 #include "fit/laser_lobe_ladder.h"
 #include "app/option_parser.h"
@@ -81,7 +82,7 @@ Status WriteLobePlot(const std::string& path, const std::vector<LaserRing>& ring
   return WritePlotPng(path, panels, options);
 }
 
-std::string SummaryJson(const PhaseFitSummary& s, const nlohmann::json& truth) {
+std::string SummaryJson(const PhaseFitSummary& s, const SessionCalibration& calibration, const nlohmann::json& truth) {
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
   j["format_version"] = "1.0";
@@ -104,6 +105,7 @@ std::string SummaryJson(const PhaseFitSummary& s, const nlohmann::json& truth) {
   j["theta_range_deg"] = {s.theta_min_deg, s.theta_max_deg};
   j["beam_centre_m"] = {s.beam_centre_m.x(), s.beam_centre_m.y()};
   j["categories"] = s.categories;
+  j["calibration"] = CalibrationSummaryJson(calibration);
   j["flat_fielded"] = s.flat_fielded;
   j["clean_subtracted"] = s.clean_subtracted;
   j["timings_s"] = {{"fit", s.total_s}};
@@ -134,14 +136,12 @@ Status MedianTauFromMap(const std::string& path, double* tau) {
 }  // namespace
 
 Status FitPhasePipeline(const std::string& session_dir, const std::string& out_dir, const PhaseFitOptions& options,
-                        int supersample, const std::string& options_ini, PhaseFitSummary* summary,
-                        std::vector<LaserRing>* rings, LaserLadderResult* ladder) {
+                        const LaserLobePreparationOptions& preparation, const std::string& options_ini,
+                        PhaseFitSummary* summary, std::vector<LaserRing>* rings, LaserLadderResult* ladder) {
   Session session;
   THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
-  LaserLobePreparationOptions prep;
-  prep.supersample = supersample;
   LaserLobeImages images;
-  THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(session_dir, session, prep, &images));
+  THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(session_dir, session, preparation, &images));
   THINSLAB_RETURN_IF_ERROR(FitPhase(options, images, rings, summary).WithContext(session_dir));
   // Model ladder rungs 0-2 (issue #8) on the same rings; 2 standard errors as in the dot-scan
   // ladder.
@@ -161,7 +161,7 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   }
   StagedDirectory out(out_dir);
   THINSLAB_RETURN_IF_ERROR(out.Init());
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, truth)));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images.calibration, truth)));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "rings.csv"), RingsCsv(*rings)));
   if (has_ladder) {
@@ -174,7 +174,7 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
 
 int RunFitPhase(int argc, char** argv) {
   PhaseFitOptions options;
-  int supersample = 3;
+  LaserLobePreparationOptions preparation;
   std::string session_dir, out_dir, tau_map;
   OptionParser parser("fit phase");
   parser.AddPositional("CAPTURE", &session_dir, "laser-lobe capture session folder");
@@ -192,7 +192,8 @@ int RunFitPhase(int argc, char** argv) {
   parser.AddDouble("huber-scale", &options.huber_scale, "robust loss scale [standard errors]");
   parser.AddDouble("min-significance", &options.min_significance, "lobe detection threshold [sigma]");
   parser.AddDouble("max-sigma-g", &options.max_sigma_g, "sigma_g above this: g not determined (failure)");
-  parser.AddInt("supersample", &supersample, "rectification sub-samples per board pixel side");
+  parser.AddInt("supersample", &preparation.supersample, "rectification sub-samples per board pixel side");
+  AddCalibrationOptions(&parser, &preparation.calibration);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
@@ -205,7 +206,7 @@ int RunFitPhase(int argc, char** argv) {
   LaserLadderResult ladder;
   if (status.ok()) {
     status =
-        FitPhasePipeline(session_dir, out_dir, options, supersample, parser.ToIni(), &summary, &rings, &ladder);
+        FitPhasePipeline(session_dir, out_dir, options, preparation, parser.ToIni(), &summary, &rings, &ladder);
   }
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";

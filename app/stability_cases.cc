@@ -183,7 +183,9 @@ Status RunPhaseStabilityCase(const PhaseStabilityCase& test_case, const std::str
   PhaseFitOptions options = test_case.fit;
   if (options.tau <= 0) options.tau = test_case.sim.rig.layer_tau > 0 ? test_case.sim.rig.layer_tau : 0.3;
   std::vector<LaserRing> rings;
-  result->pipeline = FitPhasePipeline(session_dir, fit_dir, options, test_case.supersample, "# stability case\n",
+  LaserLobePreparationOptions preparation;
+  preparation.supersample = test_case.supersample;
+  result->pipeline = FitPhasePipeline(session_dir, fit_dir, options, preparation, "# stability case\n",
                                       &result->summary, &rings);
   const PhaseFitSummary& s = result->summary;
   for (double v : {s.g, s.sigma_g, s.beta, s.chi2_reduced, s.rms_normalized_residual, s.detection_significance}) {

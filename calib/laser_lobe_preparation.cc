@@ -25,7 +25,7 @@ bool LaserLobePreparationOptions::Check(std::string* error) const {
 namespace {
 
 Status MergeAndRectify(const std::string& session_dir, const Session& session, const CameraInfo& camera,
-                       const std::vector<const FrameRecord*>& frames, double read_noise_dn,
+                       const CameraResponse* response, const std::vector<const FrameRecord*>& frames, double read_noise_dn,
                        const BoardRectifier& rectifier, BoardHdr* out) {
   if (frames.empty()) return Status::Ok();
   std::vector<Image> images(frames.size());
@@ -40,6 +40,8 @@ Status MergeAndRectify(const std::string& session_dir, const Session& session, c
   merge_options.saturation_dn = camera.saturation_dn - camera.black_level_dn;
   merge_options.gain_e_per_dn = camera.gain_e_per_dn;
   merge_options.read_noise_dn = std::max(read_noise_dn, 0.5);
+  merge_options.response = response;
+  merge_options.black_level_dn = camera.black_level_dn;
   HdrImage hdr;
   THINSLAB_RETURN_IF_ERROR(MergeExposureBracket(hdr_frames, merge_options, &hdr));
   out->radiance = rectifier.Rectify(hdr.radiance);
@@ -61,7 +63,11 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
   if (!session.rig.board.present) {
     return Status::Error(manifest + ": rig.board: missing; the laser-lobe fit needs the board distance (Gu Eq. 8)");
   }
-  const CameraInfo& camera = session.rig.cameras[0];
+  images->camera = session.rig.cameras[0];
+  THINSLAB_RETURN_IF_ERROR(
+      LoadSessionCalibration(session_dir, options.calibration, &images->camera, &images->calibration));
+  const CameraInfo& camera = images->camera;
+  const CameraResponse* response = images->calibration.response_or_null();
   auto of_camera = [&](const std::vector<const FrameRecord*>& frames) {
     std::vector<const FrameRecord*> out;
     for (const FrameRecord* f : frames) {
@@ -118,11 +124,11 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
   images->board_distance_m = session.rig.board.distance_m;
   images->beam_radius_m = session.rig.laser.present ? session.rig.laser.beam_radius_m : 0.0;
   images->read_noise_dn = read_noise;
-  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, lobe, read_noise, rectifier, &images->lobe));
-  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera,
+  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response, lobe, read_noise, rectifier, &images->lobe));
+  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response,
                                            of_camera(session.UsableFrames("laser", "clean")), read_noise, rectifier,
                                            &images->clean));
-  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, of_camera(session.UsableFrames("flat")),
+  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response, of_camera(session.UsableFrames("flat")),
                                            read_noise, rectifier, &images->flat));
   return Status::Ok();
 }

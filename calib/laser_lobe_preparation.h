@@ -7,6 +7,7 @@
 #include <string>
 
 #include "calib/hdr_merge.h"
+#include "calib/session_calibration.h"
 #include "core/image.h"
 #include "core/session.h"
 #include "core/status.h"
@@ -15,6 +16,8 @@ namespace thinslab {
 
 struct LaserLobePreparationOptions {
   int supersample = 3;  // Rectification sub-samples per board pixel side.
+  // SESSION/calib/rig.json (camera intrinsics and pose) and response.json (linearisation).
+  SessionCalibrationOptions calibration;
   bool Check(std::string* error) const;
 };
 
@@ -37,6 +40,8 @@ struct LaserLobeImages {
   double board_distance_m = 0;
   double beam_radius_m = 0;
   double read_noise_dn = 0;
+  CameraInfo camera;               // The manifest camera with the calibration applied.
+  SessionCalibration calibration;  // What was applied.
 };
 
 Status PrepareLaserLobe(const std::string& session_dir, const Session& session,

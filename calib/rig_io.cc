@@ -271,6 +271,10 @@ Status WriteRigCalibration(const std::string& path, const RigCalibration& rig) {
 
 Status ApplyRigCalibration(const RigCalibration& rig, CameraInfo* camera) {
   if (rig.camera.present) {
+    if (rig.camera.camera_id != camera->id) {
+      return Status::Error("rig.json camera.id is '" + rig.camera.camera_id + "', the session's camera is '" +
+                           camera->id + "'");
+    }
     if (rig.camera.width_px != camera->width_px || rig.camera.height_px != camera->height_px) {
       return Status::Error("rig.json camera is " + std::to_string(rig.camera.width_px) + "x" +
                            std::to_string(rig.camera.height_px) + ", camera '" + camera->id + "' is " +

@@ -68,7 +68,7 @@ Status WriteRigCalibration(const std::string& path, const RigCalibration& rig);
 Status ReadRigCalibrationIfExists(const std::string& path, RigCalibration* rig);
 
 // The manifest camera with the calibrated intrinsics/distortion and pose where present.
-// Errors if the calibrated image size differs from the camera's.
+// Errors if the calibrated camera id or image size differs from the camera's.
 Status ApplyRigCalibration(const RigCalibration& rig, CameraInfo* camera);
 
 }  // namespace thinslab

@@ -34,11 +34,20 @@ struct AveragedFrames {
   int count = 0;
 };
 
-// Averages frames of one kind, normalised by exposure, with a saturation mask. Variance from
-// the sensor's conversion gain (shot noise) and the dark frames' read noise.
+// Dark frames: their mean in raw DN above black (for the shot noise of the signal above it) and
+// linearised (subtracted in the linear domain), and the read noise from their spread (raw DN).
+struct DarkLevel {
+  Image raw_dn, linear_dn;
+  double read_variance_dn2 = 0;
+  bool empty() const { return raw_dn.empty(); }
+};
+
+// Averages frames of one kind, linearised by the camera response (nullptr = linear) and
+// normalised by exposure, with a saturation mask. Variance from the sensor's conversion gain
+// (shot noise) and the dark frames' read noise, in raw DN, times the response's slope squared.
 Status AverageFrames(const std::string& session_dir, const Session& session, const CameraInfo& camera,
-                     const std::vector<const FrameRecord*>& frames, const Image* dark_dn,
-                     double read_variance_dn2, AveragedFrames* out) {
+                     const CameraResponse* response, const std::vector<const FrameRecord*>& frames,
+                     const DarkLevel& dark, AveragedFrames* out) {
   out->count = static_cast<int>(frames.size());
   const int w = camera.width_px, h = camera.height_px;
   Image sum(w, h), sum_exposure_var(w, h), saturated(w, h);
@@ -48,12 +57,18 @@ Status AverageFrames(const std::string& session_dir, const Session& session, con
     THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *frame, &dn));
     const double t = frame->exposure_time_us;
     for (size_t i = 0; i < dn.data().size(); ++i) {
-      float v = dn.data()[i];
-      if (camera.bit_depth != 32 && v >= saturation_above_black - 0.5f) saturated.data()[i] = 1;
-      if (dark_dn != nullptr) v -= dark_dn->data()[i];
+      const float z = dn.data()[i];
+      if (camera.bit_depth != 32 && z >= saturation_above_black - 0.5f) saturated.data()[i] = 1;
+      double v = response != nullptr ? response->Linearize(z) : z;
+      const double slope = response != nullptr ? response->Slope(z) : 1.0;
+      double signal_dn = z;
+      if (!dark.empty()) {
+        v -= dark.linear_dn.data()[i];
+        signal_dn -= dark.raw_dn.data()[i];
+      }
       sum.data()[i] += static_cast<float>(v / t);
-      const double shot = camera.gain_e_per_dn > 0 ? std::max(0.0f, v) / camera.gain_e_per_dn : 0.0;
-      sum_exposure_var.data()[i] += static_cast<float>((shot + read_variance_dn2) / (t * t));
+      const double shot = camera.gain_e_per_dn > 0 ? std::max(0.0, signal_dn) / camera.gain_e_per_dn : 0.0;
+      sum_exposure_var.data()[i] += static_cast<float>(Sqr(slope) * (shot + dark.read_variance_dn2) / (t * t));
     }
   }
   const float n = static_cast<float>(frames.size());
@@ -64,6 +79,30 @@ Status AverageFrames(const std::string& session_dir, const Session& session, con
     out->variance.data()[i] = sum_exposure_var.data()[i] / (n * n);
   }
   out->saturated = saturated;
+  return Status::Ok();
+}
+
+Status AverageDarks(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                    const CameraResponse* response, const std::vector<const FrameRecord*>& dark_frames,
+                    DarkLevel* dark) {
+  if (dark_frames.empty()) return Status::Ok();
+  std::vector<Image> darks(dark_frames.size());
+  for (size_t k = 0; k < dark_frames.size(); ++k) {
+    THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *dark_frames[k], &darks[k]));
+  }
+  dark->raw_dn = Image(camera.width_px, camera.height_px);
+  dark->linear_dn = Image(camera.width_px, camera.height_px);
+  const float n = static_cast<float>(darks.size());
+  for (Image& d : darks) {
+    for (size_t i = 0; i < d.data().size(); ++i) dark->raw_dn.data()[i] += d.data()[i] / n;
+  }
+  double sum_sq = 0;
+  for (Image& d : darks) {
+    for (size_t i = 0; i < d.data().size(); ++i) sum_sq += Sqr(d.data()[i] - dark->raw_dn.data()[i]);
+    LinearizeFrame(response, &d);
+    for (size_t i = 0; i < d.data().size(); ++i) dark->linear_dn.data()[i] += d.data()[i] / n;
+  }
+  if (darks.size() > 1) dark->read_variance_dn2 = sum_sq / (dark->raw_dn.data().size() * (darks.size() - 1));
   return Status::Ok();
 }
 
@@ -78,7 +117,11 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   if (!session.rig.board.present) {
     return Status::Error(manifest + ": rig.board: missing; a shadow-map session needs the board distance");
   }
-  const CameraInfo& camera = session.rig.cameras[0];
+  maps->camera = session.rig.cameras[0];
+  THINSLAB_RETURN_IF_ERROR(
+      LoadSessionCalibration(session_dir, options.calibration, &maps->camera, &maps->calibration));
+  const CameraInfo& camera = maps->camera;
+  const CameraResponse* response = maps->calibration.response_or_null();
   auto of_camera = [&](std::vector<const FrameRecord*> frames) {
     std::vector<const FrameRecord*> out;
     for (const FrameRecord* f : frames) {
@@ -93,30 +136,13 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
     return Status::Error(manifest + ": frames: no usable frame of kind 'shadow' for camera '" + camera.id + "'");
   }
 
-  // Dark level: mean of the dark frames (DN above black level) and read noise from their spread.
-  Image dark;
-  double read_variance = 0;
-  if (!dark_frames.empty()) {
-    std::vector<Image> darks(dark_frames.size());
-    for (size_t k = 0; k < dark_frames.size(); ++k) {
-      THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *dark_frames[k], &darks[k]));
-    }
-    dark = Image(camera.width_px, camera.height_px);
-    double sum_sq = 0;
-    for (const Image& d : darks) {
-      for (size_t i = 0; i < d.data().size(); ++i) dark.data()[i] += d.data()[i] / darks.size();
-    }
-    for (const Image& d : darks) {
-      for (size_t i = 0; i < d.data().size(); ++i) sum_sq += Sqr(d.data()[i] - dark.data()[i]);
-    }
-    if (darks.size() > 1) read_variance = sum_sq / (dark.data().size() * (darks.size() - 1));
-  }
+  DarkLevel dark;
+  THINSLAB_RETURN_IF_ERROR(AverageDarks(session_dir, session, camera, response, dark_frames, &dark));
   AveragedFrames shadow, reference;
-  THINSLAB_RETURN_IF_ERROR(AverageFrames(session_dir, session, camera, shadow_frames,
-                                         dark.empty() ? nullptr : &dark, read_variance, &shadow));
+  THINSLAB_RETURN_IF_ERROR(AverageFrames(session_dir, session, camera, response, shadow_frames, dark, &shadow));
   if (!reference_frames.empty()) {
-    THINSLAB_RETURN_IF_ERROR(AverageFrames(session_dir, session, camera, reference_frames,
-                                           dark.empty() ? nullptr : &dark, read_variance, &reference));
+    THINSLAB_RETURN_IF_ERROR(
+        AverageFrames(session_dir, session, camera, response, reference_frames, dark, &reference));
   }
 
   // Rectification onto the board plane over the manifest's region grid.

@@ -7,6 +7,7 @@
 
 #include <string>
 
+#include "calib/session_calibration.h"
 #include "core/image.h"
 #include "core/session.h"
 #include "core/status.h"
@@ -19,6 +20,8 @@ struct ShadowMapPreparationOptions {
   int supersample = 4;
   // Override of the manifest's board distance (metres); 0 = use the manifest.
   double board_distance_m = 0;
+  // SESSION/calib/rig.json (camera intrinsics and pose) and response.json (linearisation).
+  SessionCalibrationOptions calibration;
 
   bool Check(std::string* error) const;
 };
@@ -36,6 +39,8 @@ struct RectifiedShadowMaps {
   int num_shadow_frames = 0;
   int num_reference_frames = 0;
   int num_dark_frames = 0;
+  CameraInfo camera;                 // The manifest camera with the calibration applied.
+  SessionCalibration calibration;    // What was applied.
 };
 
 Status PrepareShadowMaps(const std::string& session_dir, const Session& session,

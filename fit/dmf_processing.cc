@@ -10,6 +10,7 @@
 
 #include "calib/board_rectification.h"
 #include "calib/hdr_merge.h"
+#include "core/file.h"
 #include "core/math.h"
 #include "core/session_io.h"
 
@@ -24,6 +25,70 @@ std::string DotName(const Eigen::Vector2d& px) {
   std::ostringstream s;
   s << "dot (" << px.x() << ", " << px.y() << ")";
   return s.str();
+}
+
+// rig.json's dots must be the scan's grid, in the same (row-major) order.
+Status CheckCalibratedDots(const RigMonitorCalibration& monitor, const std::vector<Eigen::Vector2d>& displayed) {
+  if (monitor.dots.size() != displayed.size()) {
+    return Status::Error("dots: " + std::to_string(monitor.dots.size()) + " calibrated dots, the scan shows " +
+                         std::to_string(displayed.size()) +
+                         " (rerun `thinslab calib dots` on this grid, or fit with --calibration none)");
+  }
+  for (size_t k = 0; k < displayed.size(); ++k) {
+    if ((monitor.dots[k].dot_px - displayed[k]).norm() > 1e-6) {
+      return Status::Error("dots[" + std::to_string(k) + "].dot_px: " + DotName(monitor.dots[k].dot_px) +
+                           ", the scan's dot " + std::to_string(k) + " is " + DotName(displayed[k]));
+    }
+  }
+  return Status::Ok();
+}
+
+// Step 1 from the all-dots frames without the sample: the longest exposure with no saturated
+// dot, else the shortest in which the dots are found.
+Status MeasureDotGeometry(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                          const CameraResponse* response, const std::vector<Eigen::Vector2d>& displayed,
+                          const DmfProcessingOptions& options, DotGeometryResult* geometry,
+                          DmfProcessingReport* report) {
+  const std::string manifest = JoinPath(session_dir, kSessionManifestName);
+  const auto all_dots = session.UsableFrames("all_dots", "none");
+  if (all_dots.empty()) {
+    return Status::Error(manifest + ": no usable 'all_dots' frame with sample_state 'none': the dot positions " +
+                         "cannot be calibrated (Dai et al. Sec. 4.1 locate them without the sample)");
+  }
+  DotGeometryOptions geometry_options = options.dot_geometry;
+  geometry_options.dot_radius_px = options.dot_radius_px;
+  std::vector<const FrameRecord*> by_exposure = all_dots;
+  std::sort(by_exposure.begin(), by_exposure.end(),
+            [](const FrameRecord* a, const FrameRecord* b) { return a->exposure_time_us > b->exposure_time_us; });
+  const double saturation = camera.saturation_dn - camera.black_level_dn;
+  const double linear_saturation = response != nullptr ? response->Linearize(saturation) : saturation;
+  bool have_geometry = false;
+  std::string geometry_error;
+  for (const FrameRecord* f : by_exposure) {
+    Image frame;
+    THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *f, &frame));
+    LinearizeFrame(response, &frame);
+    DotGeometryResult g;
+    const Status s = CalibrateDotGeometry(frame, f->exposure_time_us, linear_saturation, camera,
+                                          session.rig.monitor, displayed, geometry_options, &g);
+    if (!s.ok()) {
+      geometry_error = f->file + ": " + s.message();
+      continue;
+    }
+    *geometry = g;
+    report->dot_geometry_source = f->file;
+    have_geometry = true;
+    if (std::none_of(g.dots.begin(), g.dots.end(), [](const DotRecord& d) { return d.detected && d.saturated; })) break;
+  }
+  if (!have_geometry) return Status::Error("dot geometry: " + geometry_error);
+  if (std::all_of(geometry->dots.begin(), geometry->dots.end(), [](const DotRecord& d) { return d.saturated; })) {
+    // The dots were found only in frames where they saturate; say why the shorter ones failed.
+    return Status::Error("dot geometry: every dot is saturated in " + report->dot_geometry_source +
+                         ", the all-dots frame in which they were found, so L_q cannot be measured (the all-dots "
+                         "bracket needs an exposure in which the dots are found and not saturated)" +
+                         (geometry_error.empty() ? std::string() : "; in shorter exposures: " + geometry_error));
+  }
+  return Status::Ok();
 }
 
 }  // namespace
@@ -49,7 +114,9 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   THINSLAB_RETURN_IF_ERROR(ValidateSession(session, session_dir));
   const std::string manifest = session_dir + "/session.json";
   if (session.rig.cameras.empty()) return Status::Error(manifest + ": rig.cameras is empty");
-  const CameraInfo& camera = session.rig.cameras[0];
+  CameraInfo camera = session.rig.cameras[0];
+  THINSLAB_RETURN_IF_ERROR(LoadSessionCalibration(session_dir, options.calibration, &camera, &report->calibration));
+  const CameraResponse* response = report->calibration.response_or_null();
   const MonitorInfo& monitor = session.rig.monitor;
   if (!monitor.present || !(monitor.pixel_pitch_m > 0)) {
     return Status::Error(manifest + ": rig.monitor is missing (a CRT dot scan needs the monitor geometry)");
@@ -87,51 +154,30 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   std::vector<Eigen::Vector2d> displayed;
   for (const auto& [yx, frames] : by_dot) displayed.emplace_back(yx.second, yx.first);
 
-  // 1. Dot geometry and L_q from the all-dots frame without the sample: the longest exposure
-  // with no saturated dot, else the shortest.
+  // 1. Dot geometry and L_q: from rig.json's monitor section (`thinslab calib dots`) if present,
+  // else from the all-dots frame without the sample.
   auto t = std::chrono::steady_clock::now();
-  const auto all_dots = session.UsableFrames("all_dots", "none");
-  if (all_dots.empty()) {
-    return Status::Error(manifest + ": no usable 'all_dots' frame with sample_state 'none': the dot positions " +
-                         "cannot be calibrated (Dai et al. Sec. 4.1 locate them without the sample)");
-  }
   DotGeometryResult geometry;
-  DotGeometryOptions geometry_options = options.dot_geometry;
-  geometry_options.dot_radius_px = options.dot_radius_px;
-  std::vector<const FrameRecord*> by_exposure = all_dots;
-  std::sort(by_exposure.begin(), by_exposure.end(),
-            [](const FrameRecord* a, const FrameRecord* b) { return a->exposure_time_us > b->exposure_time_us; });
-  bool have_geometry = false;
-  std::string geometry_error, geometry_file;
-  for (const FrameRecord* f : by_exposure) {
-    Image frame;
-    THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *f, &frame));
-    DotGeometryResult g;
-    const Status s = CalibrateDotGeometry(frame, f->exposure_time_us, camera.saturation_dn - camera.black_level_dn,
-                                          camera, monitor, displayed, geometry_options, &g);
-    if (!s.ok()) {
-      geometry_error = f->file + ": " + s.message();
-      continue;
-    }
-    const bool any_saturated =
-        std::any_of(g.dots.begin(), g.dots.end(), [](const DotRecord& d) { return d.detected && d.saturated; });
-    geometry = g;
-    geometry_file = f->file;
-    have_geometry = true;
-    if (!any_saturated) break;
+  const RigMonitorCalibration& calibrated = report->calibration.monitor;
+  if (calibrated.present) {
+    THINSLAB_RETURN_IF_ERROR(
+        CheckCalibratedDots(calibrated, displayed).WithContext(report->calibration.rig_file + ": monitor"));
+    geometry.dots = calibrated.dots;
+    geometry.rms_residual_m = calibrated.rms_residual_m;
+    report->dot_geometry_source = report->calibration.rig_file;
+  } else {
+    THINSLAB_RETURN_IF_ERROR(
+        MeasureDotGeometry(session_dir, session, camera, response, displayed, options, &geometry, report));
   }
-  if (!have_geometry) return Status::Error("dot geometry: " + geometry_error);
   std::vector<double> radiances;
   for (const DotRecord& d : geometry.dots) {
-    if (!d.detected) return Status::Error("dot geometry: " + DotName(d.dot_px) + " was not found in the all-dots frame");
+    if (!d.detected) return Status::Error("dot geometry: " + DotName(d.dot_px) + " was not found in " + report->dot_geometry_source);
     if (!d.saturated) radiances.push_back(d.radiance_dn_per_us);
   }
   if (radiances.empty()) {
     // The dots were found only in frames where they saturate; say why the shorter ones failed.
-    return Status::Error("dot geometry: every dot is saturated in " + geometry_file +
-                         ", the all-dots frame in which they were found, so L_q cannot be measured (the all-dots "
-                         "bracket needs an exposure in which the dots are found and not saturated)" +
-                         (geometry_error.empty() ? std::string() : "; in shorter exposures: " + geometry_error));
+    return Status::Error("dot geometry: every dot is saturated in " + report->dot_geometry_source +
+                         ", so L_q cannot be measured");
   }
   std::nth_element(radiances.begin(), radiances.begin() + radiances.size() / 2, radiances.end());
   const double median_radiance = radiances[radiances.size() / 2];
@@ -174,13 +220,15 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   // 2-3. One dot at a time: merge, rectify, Eq. 12.
   t = std::chrono::steady_clock::now();
   const auto darks = session.UsableFrames("dark", sample_state);
-  const double dot_area = kPi * Sqr(options.dot_radius_px * monitor.pixel_pitch_m);
+  // A of Eq. 12 with the dot radius L_q was measured with (L_q A is the dot's intensity).
+  const double dot_radius_px = calibrated.present ? calibrated.dot_radius_px : options.dot_radius_px;
+  const double dot_area = kPi * Sqr(dot_radius_px * monitor.pixel_pitch_m);
   std::vector<int> saturated_dots(np, 0);
   int q = 0;
   for (const auto& [yx, frames] : by_dot) {
     HdrImage hdr;
     SessionMergeInfo info;
-    THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, darks, nullptr,
+    THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, darks, response,
                                                  HdrMergeOptions(), 1.0, &hdr, &info)
                                  .WithContext(DotName(displayed[q])));
     report->num_frames += info.num_frames;

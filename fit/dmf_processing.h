@@ -2,7 +2,8 @@
 // Image processing of a CRT dot scan into BTDF slices (Dai et al. 2009, Sec. 4.1), streaming
 // one dot's exposure bracket at a time:
 //  1. dot geometry and radiance L_q from the all-dots frame taken without the sample
-//     (calib/dot_geometry.h: sub-pixel centroids back-projected to the monitor plane);
+//     (calib/dot_geometry.h: sub-pixel centroids back-projected to the monitor plane), or from
+//     calib/rig.json when `thinslab calib dots` wrote its monitor section;
 //  2. per dot: HDR merge of its bracket with the dark bracket subtracted (calib/hdr_merge.h),
 //     rectified onto the sample grid with area weighting (calib/board_rectification.h);
 //  3. Eq. 12, with the emitter's cosine explicit (a monitor pixel of radiance L_q and area A
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include "calib/dot_geometry.h"
+#include "calib/session_calibration.h"
 #include "core/status.h"
 #include "fit/dmf_map_fit.h"
 
@@ -32,6 +34,9 @@ struct DmfProcessingOptions {
   double max_saturated_points = 0.5;
   int supersample = 2;         // Rectification sub-samples per grid pixel and axis.
   DotGeometryOptions dot_geometry;
+  // SESSION/calib/rig.json (camera intrinsics, pose and, from `thinslab calib dots`, the dot
+  // positions and radiances, which then replace step 1) and response.json (linearisation).
+  SessionCalibrationOptions calibration;
   bool Check(std::string* error) const;
 };
 
@@ -42,6 +47,8 @@ struct DmfProcessingReport {
   int saturated_points = 0, outside_points = 0;
   double geometry_s = 0, merge_s = 0, total_s = 0;
   size_t slice_bytes = 0;  // Memory of the slice matrix.
+  SessionCalibration calibration;  // What was applied.
+  std::string dot_geometry_source;  // The all-dots frame used, or the rig.json file.
 };
 
 Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingOptions& options, DmfSliceSet* slices,

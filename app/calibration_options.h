@@ -1,0 +1,21 @@
+// SPDX-License-Identifier: Apache-2.0
+// The options every fit command shares for the calibration it applies (calib/session_calibration.h)
+// and the record of it in the fits' summary.json.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "calib/session_calibration.h"
+
+namespace thinslab {
+
+class OptionParser;
+
+// --calibration auto|none, --rig PATH, --response PATH|linear.
+void AddCalibrationOptions(OptionParser* parser, SessionCalibrationOptions* options);
+
+// {"rig": file or null, "intrinsics": bool, "pose": bool, "monitor": bool, "response": file or
+// null, "response_method": "linear" | "debevec" | "robertson"} (docs/format.md section 9).
+nlohmann::json CalibrationSummaryJson(const SessionCalibration& calibration);
+
+}  // namespace thinslab
