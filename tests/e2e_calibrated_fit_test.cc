@@ -16,7 +16,9 @@
 #include "core/exr_io.h"
 #include "core/file.h"
 #include "core/session_io.h"
+#include "fit/dmf_processing.h"
 #include "sim/exposure_bracket_sim.h"
+#include "sim/synthesize_dot_scan_session.h"
 #include "sim/sim_chessboard.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
@@ -151,6 +153,62 @@ TEST(CalibratedFit, ResponseFromBracketLinearisesShadowMaps) {
   EXPECT_LT(calibrated, 1.25 * nominal);
   const nlohmann::json summary = ReadJson(dir / "calibrated/summary.json");
   EXPECT_EQ(summary["calibration"]["response_method"].get<std::string>(), "debevec");
+}
+
+// `thinslab calib dots` writes the dot positions and radiances into calib/rig.json; the
+// dot-scan processing then takes them from there instead of calibrating them again (a shift
+// written into the file shows up in the light positions it uses), and refuses a file made for
+// another dot grid.
+TEST(CalibratedFit, DotScanTakesDotGeometryFromRigJson) {
+  TempDir dir;
+  SyntheticDotScanOptions sim;
+  sim.session.grid_nx = sim.session.grid_ny = 6;
+  sim.sample.photons_per_region = 20000;
+  const std::string session = dir / "dots";
+  ASSERT_TRUE(SynthesizeDotScanSession(sim, session).ok());
+  DmfProcessingOptions processing;
+  processing.pitch_m = 0.01;
+  DmfSliceSet measured;
+  DmfProcessingReport report;
+  ASSERT_TRUE(PrepareDotScanSlices(session, processing, &measured, &report).ok());
+  EXPECT_NE(report.dot_geometry_source.find("all_dots"), std::string::npos) << report.dot_geometry_source;
+
+  const RunResult dots = RunThinslab("calib dots " + session);
+  ASSERT_EQ(dots.exit_code, 0) << dots.output;
+  const std::string rig_path = session + "/calib/rig.json";
+  RigCalibration rig;
+  ASSERT_TRUE(ReadRigCalibration(rig_path, &rig).ok());
+  ASSERT_EQ(rig.monitor.dots.size(), 36u);
+  const Eigen::Vector3d shift(0.005, 0, 0);
+  for (DotRecord& d : rig.monitor.dots) d.position_in_sample_m += shift;
+  ASSERT_TRUE(WriteRigCalibration(rig_path, rig).ok());
+
+  DmfSliceSet calibrated;
+  ASSERT_TRUE(PrepareDotScanSlices(session, processing, &calibrated, &report).ok());
+  EXPECT_EQ(report.dot_geometry_source, rig_path);
+  EXPECT_TRUE(report.calibration.monitor.present);
+  ASSERT_EQ(calibrated.dot_positions.size(), measured.dot_positions.size());
+  double max_deviation_m = 0;
+  for (size_t k = 0; k < calibrated.dot_positions.size(); ++k) {
+    EXPECT_EQ(calibrated.dot_positions[k], rig.monitor.dots[k].position_in_sample_m);
+    max_deviation_m =
+        std::max(max_deviation_m, (calibrated.dot_positions[k] - shift - measured.dot_positions[k]).norm());
+  }
+  // Same dots, same frame and code: the two calibrations agree once the shift is removed.
+  EXPECT_LT(max_deviation_m, 1e-6);
+
+  processing.calibration.mode = "none";
+  DmfSliceSet ignored;
+  ASSERT_TRUE(PrepareDotScanSlices(session, processing, &ignored, &report).ok());
+  EXPECT_EQ(ignored.dot_positions, measured.dot_positions);
+
+  rig.monitor.dots.pop_back();
+  ASSERT_TRUE(WriteRigCalibration(rig_path, rig).ok());
+  processing.calibration.mode = "auto";
+  const Status refused = PrepareDotScanSlices(session, processing, &calibrated, &report);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find(rig_path), std::string::npos) << refused.message();
+  EXPECT_NE(refused.message().find("35 calibrated dots, the scan shows 36"), std::string::npos) << refused.message();
 }
 
 TEST(CalibratedFit, CalibrationOfAnotherCameraIsRefusedNamingTheFile) {
