@@ -11,17 +11,38 @@
 
 namespace thinslab {
 
+namespace {
+
+// Longest side, in camera pixels, of the image of the map pixel's square (its projected
+// corners); 0 if a corner does not project.
+double FootprintSidePx(const CameraInfo& camera, const BoardGrid& grid, int i, int j) {
+  Eigen::Vector2d uv[4];
+  for (int c = 0; c < 4; ++c) {
+    const Eigen::Vector3d corner(grid.grid_min_m.x() + (i + c % 2) * grid.pixel_pitch_m,
+                                 grid.grid_min_m.y() + (j + c / 2) * grid.pixel_pitch_m, grid.plane_z_m);
+    if (!ProjectSamplePoint(camera, corner, &uv[c])) return 0;
+  }
+  return std::max({(uv[1] - uv[0]).norm(), (uv[3] - uv[2]).norm(), (uv[2] - uv[0]).norm(), (uv[3] - uv[1]).norm()});
+}
+
+}  // namespace
+
 BoardRectifier::BoardRectifier(const CameraInfo& camera, const BoardGrid& grid)
     : grid_(grid), camera_width_px_(camera.width_px) {
   CHECK_GT(grid.width_px, 0);
   CHECK_GT(grid.height_px, 0);
   CHECK_GE(grid.supersample, 1);
-  const int s = grid.supersample, w = grid.width_px, h = grid.height_px;
-  sample_pixel_.assign(static_cast<size_t>(w) * h * s * s, -1);
+  const int w = grid.width_px, h = grid.height_px;
   outside_ = Image(w, h);
+  offsets_.assign(1, 0);
+  offsets_.reserve(static_cast<size_t>(w) * h + 1);
+  std::vector<int> hits;
   for (int j = 0; j < h; ++j) {
     for (int i = 0; i < w; ++i) {
-      const size_t base = (static_cast<size_t>(j) * w + i) * s * s;
+      const double side_px = grid.average_footprint ? FootprintSidePx(camera, grid, i, j) : 0.0;
+      const int s = std::min(kMaxSubsamplesPerSide,
+                             std::max(grid.supersample, static_cast<int>(std::ceil(kSubsamplesPerCameraPixel * side_px))));
+      hits.clear();
       for (int a = 0; a < s; ++a) {
         for (int b = 0; b < s; ++b) {
           const Eigen::Vector3d x_in_sample(grid.grid_min_m.x() + (i + (b + 0.5) / s) * grid.pixel_pitch_m,
@@ -33,52 +54,39 @@ BoardRectifier::BoardRectifier(const CameraInfo& camera, const BoardGrid& grid)
             outside_.at(i, j) = 1;
             continue;
           }
-          sample_pixel_[base + a * s + b] = static_cast<int>(uv.y()) * camera.width_px + static_cast<int>(uv.x());
+          hits.push_back(static_cast<int>(uv.y()) * camera.width_px + static_cast<int>(uv.x()));
         }
       }
+      std::sort(hits.begin(), hits.end());
+      for (size_t k = 0; k < hits.size();) {
+        size_t end = k;
+        while (end < hits.size() && hits[end] == hits[k]) ++end;
+        camera_pixel_.push_back(hits[k]);
+        weight_.push_back(static_cast<float>(static_cast<double>(end - k) / hits.size()));
+        k = end;
+      }
+      offsets_.push_back(static_cast<int>(camera_pixel_.size()));
     }
   }
 }
 
 Image BoardRectifier::Rectify(const Image& image) const {
   CHECK_EQ(image.width(), camera_width_px_);
-  const int s2 = grid_.supersample * grid_.supersample;
   Image out(grid_.width_px, grid_.height_px);
   for (size_t p = 0; p < out.num_pixels(); ++p) {
     double sum = 0;
-    int n = 0;
-    for (int k = 0; k < s2; ++k) {
-      const int idx = sample_pixel_[p * s2 + k];
-      if (idx < 0) continue;
-      sum += image.data()[idx];
-      ++n;
-    }
-    out.data()[p] = n > 0 ? static_cast<float>(sum / n) : 0.0f;
+    for (int e = offsets_[p]; e < offsets_[p + 1]; ++e) sum += weight_[e] * image.data()[camera_pixel_[e]];
+    out.data()[p] = static_cast<float>(sum);
   }
   return out;
 }
 
 Image BoardRectifier::RectifyVariance(const Image& variance) const {
   CHECK_EQ(variance.width(), camera_width_px_);
-  const int s2 = grid_.supersample * grid_.supersample;
   Image out(grid_.width_px, grid_.height_px);
-  std::vector<int> pixels;
   for (size_t p = 0; p < out.num_pixels(); ++p) {
-    pixels.clear();
-    for (int k = 0; k < s2; ++k) {
-      const int idx = sample_pixel_[p * s2 + k];
-      if (idx >= 0) pixels.push_back(idx);
-    }
-    if (pixels.empty()) continue;
-    std::sort(pixels.begin(), pixels.end());
-    const double n = static_cast<double>(pixels.size());
     double sum = 0;
-    for (size_t a = 0; a < pixels.size();) {
-      size_t b = a;
-      while (b < pixels.size() && pixels[b] == pixels[a]) ++b;
-      sum += Sqr((b - a) / n) * variance.data()[pixels[a]];
-      a = b;
-    }
+    for (int e = offsets_[p]; e < offsets_[p + 1]; ++e) sum += Sqr(weight_[e]) * variance.data()[camera_pixel_[e]];
     out.data()[p] = static_cast<float>(sum);
   }
   return out;
@@ -86,12 +94,10 @@ Image BoardRectifier::RectifyVariance(const Image& variance) const {
 
 Image BoardRectifier::RectifyAny(const Image& mask) const {
   CHECK_EQ(mask.width(), camera_width_px_);
-  const int s2 = grid_.supersample * grid_.supersample;
   Image out(grid_.width_px, grid_.height_px);
   for (size_t p = 0; p < out.num_pixels(); ++p) {
-    for (int k = 0; k < s2; ++k) {
-      const int idx = sample_pixel_[p * s2 + k];
-      if (idx >= 0 && mask.data()[idx] != 0) {
+    for (int e = offsets_[p]; e < offsets_[p + 1]; ++e) {
+      if (mask.data()[camera_pixel_[e]] != 0) {
         out.data()[p] = 1;
         break;
       }

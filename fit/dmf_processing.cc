@@ -194,6 +194,10 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   grid.height_px = static_cast<int>(std::floor((sample.region_max_m.y() - sample.region_min_m.y()) / pitch + 1e-6));
   grid.plane_z_m = 0;
   grid.supersample = options.supersample;
+  // Eq. 12 gives each grid point one lighting direction per dot; averaging a coarse cell
+  // (8 mm at 40 mm from the monitor spans +-6 degrees) would blur the lobe by that spread, so
+  // the cell is sampled at supersample^2 points instead (docs/models/dual_microfacet_fit.md).
+  grid.average_footprint = false;
   if (grid.width_px < 1 || grid.height_px < 1) return Status::Error(manifest + ": rig.sample region is empty");
   const BoardRectifier rectifier(camera, grid);
 

@@ -5,7 +5,9 @@
 //     (calib/dot_geometry.h: sub-pixel centroids back-projected to the monitor plane), or from
 //     calib/rig.json when `thinslab calib dots` wrote its monitor section;
 //  2. per dot: HDR merge of its bracket with the dark bracket subtracted (calib/hdr_merge.h),
-//     rectified onto the sample grid with area weighting (calib/board_rectification.h);
+//     rectified onto the sample grid (calib/board_rectification.h) at supersample^2 points
+//     per grid cell, not the cell average (which would blur the lobe by the cell's spread of
+//     lighting directions);
 //  3. Eq. 12, with the emitter's cosine explicit (a monitor pixel of radiance L_q and area A
 //     has intensity L_q A cos_e towards the sample point):
 //        R(x, i_q, o) = I_q(x) r^2 / (L_q A cos_e (z . i_q)),
