@@ -44,6 +44,9 @@ struct FitTauRun {
   int supersample = 4;
   double board_distance_m = 0;  // 0: from the manifest.
   SessionCalibrationOptions calibration;  // CAPTURE/calib/ files applied (calib/session_calibration.h).
+  // A `fit phase` output folder whose choice sets fit.layer_g and fit.refine_scattering
+  // (app/layer_from_phase.h); "" = the options as given.
+  std::string phase_dir;
   std::string options_ini;      // Effective options, written as options.ini.
 };
 Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,

@@ -7,6 +7,7 @@
 
 #include "app/calibration_options.h"
 #include "app/commands.h"
+#include "app/layer_from_phase.h"
 #include "app/option_parser.h"
 #include "calib/shadow_map_preparation.h"
 #include "core/exr_io.h"
@@ -27,7 +28,8 @@ std::string RigidToJson(const Rigid3d& t) {
 
 std::string PointToJson(const Eigen::Vector2d& p) { return nlohmann::json({p.x(), p.y()}).dump(); }
 
-std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, double color_max) {
+std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, const TauFitOptions& fit,
+                        const PhaseLayerChoice* phase, double color_max) {
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
   j["format_version"] = "1.0";
@@ -43,6 +45,9 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
   j["rms_normalized_residual"] = s.rms_normalized_residual;
   j["mean_scattered_fraction"] = s.mean_scattered_fraction;
   j["calibration"] = CalibrationSummaryJson(data.calibration);
+  j["layer"] = {{"albedo", fit.layer_albedo}, {"g", fit.layer_g}, {"refine_scattering", fit.refine_scattering},
+                {"source", phase != nullptr ? phase->summary_path : std::string("options")}};
+  if (phase != nullptr) j["layer"]["phase_ladder_rung"] = phase->rung;
   j["frames"] = {{"shadow", data.num_shadow_frames}, {"reference", data.num_reference_frames},
                  {"dark", data.num_dark_frames}};
   j["timings_s"] = {{"plain", s.plain_s}, {"refine", s.refine_s}, {"fit_total", s.total_s}};
@@ -60,6 +65,12 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   prep_options.supersample = run.supersample;
   prep_options.board_distance_m = run.board_distance_m;
   prep_options.calibration = run.calibration;
+  TauFitOptions fit = run.fit;
+  PhaseLayerChoice phase;
+  if (!run.phase_dir.empty()) {
+    THINSLAB_RETURN_IF_ERROR(ReadPhaseLayerChoice(run.phase_dir, &phase));
+    ApplyPhaseLayerChoice(phase, &fit);
+  }
   RectifiedShadowMaps data;
   THINSLAB_RETURN_IF_ERROR(PrepareShadowMaps(session_dir, session, prep_options, &data));
   int64_t in_view = 0, saturated = 0;
@@ -79,7 +90,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
     return Status::Error(msg.str());
   }
   TauMaps maps;
-  THINSLAB_RETURN_IF_ERROR(FitTau(run.fit, data, &maps, summary).WithContext(session_dir));
+  THINSLAB_RETURN_IF_ERROR(FitTau(fit, data, &maps, summary).WithContext(session_dir));
 
   StagedDirectory out(out_dir);
   THINSLAB_RETURN_IF_ERROR(out.Init());
@@ -94,7 +105,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   tau.attributes()["region_min_m"] = PointToJson(sample.region_min_m);
   tau.attributes()["region_max_m"] = PointToJson(sample.region_max_m);
   tau.attributes()["pixel_pitch_m"] = nlohmann::json(data.pixel_pitch_m).dump();
-  tau.attributes()["model"] = run.fit.refine_scattering ? "gu2007_eq5_eq6_refined" : "gu2007_eq7";
+  tau.attributes()["model"] = fit.refine_scattering ? "gu2007_eq5_eq6_refined" : "gu2007_eq7";
   THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "tau.exr"), tau));
 
   const Image status = tau.Channel(2);
@@ -103,11 +114,11 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   color.max_value = 1.5;
   const Image tau_only = tau.Channel(0);
   for (float v : tau_only.data()) color.max_value = std::max(color.max_value, static_cast<double>(v));
-  color.max_value = std::min(color.max_value, run.fit.tau_max);
+  color.max_value = std::min(color.max_value, fit.tau_max);
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_falsecolor.png"), tau, 0, &status, color));
   color.label = "tau Eq.7";
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_plain_falsecolor.png"), tau, 1, &status, color));
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, color.max_value)));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value)));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
 
@@ -166,10 +177,15 @@ int RunFit(int argc, char** argv) {
   parser.AddPositional("CAPTURE", &session_dir, "shadow-map capture session folder");
   parser.AddString("out", &out_dir, "output folder (default CAPTURE/fit/tau)");
   AddFitTauOptions(&parser, &run);
+  parser.AddString("phase", &run.phase_dir,
+                   "`fit phase` output folder of the same layer: its model ladder choice sets --refine and --g");
   Status status = parser.Parse(argc - 1, argv + 1);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
     return 0;
+  }
+  if (status.ok() && !run.phase_dir.empty() && (parser.IsSet("g") || parser.IsSet("refine"))) {
+    status = Status::Error("thinslab fit tau: --phase sets the layer's g and --refine; give either --phase or --g/--refine");
   }
   if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "tau");
   run.options_ini = parser.ToIni();

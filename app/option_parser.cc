@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "app/option_parser.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -99,7 +100,12 @@ void OptionParser::AddPositional(const std::string& name, std::string* value, co
   positionals_.push_back({name, help, value, required});
 }
 
+bool OptionParser::IsSet(const std::string& name) const {
+  return std::find(set_names_.begin(), set_names_.end(), name) != set_names_.end();
+}
+
 Status OptionParser::Parse(int argc, char** argv) {
+  set_names_.clear();
   size_t next_positional = 0;
   for (int i = 0; i < argc; ++i) {
     std::string arg = argv[i];
@@ -137,6 +143,7 @@ Status OptionParser::Parse(int argc, char** argv) {
         return Status::Error("thinslab " + command_ + ": option --" + name + " = '" + value + "' is not a valid " +
                              option->kind);
       }
+      set_names_.push_back(name);
       continue;
     }
     if (next_positional >= positionals_.size()) {

@@ -26,6 +26,8 @@ class OptionParser {
 
   Status Parse(int argc, char** argv);
   bool help_requested() const { return help_requested_; }
+  // True if the last Parse() set option `name` from the command line.
+  bool IsSet(const std::string& name) const;
   std::string Usage() const;
   // "name = value" lines, for options.ini.
   std::string ToIni() const;
@@ -45,6 +47,7 @@ class OptionParser {
   std::vector<Option> options_;
   std::vector<Positional> positionals_;
   bool help_requested_ = false;
+  std::vector<std::string> set_names_;
 };
 
 // FNV-1a 64-bit hash as 16 hex digits (provenance digest of options.ini).

@@ -27,6 +27,10 @@ TEST(OptionParser, FlagBeforeAPositionalDoesNotSwallowIt) {
   EXPECT_TRUE(resume);
   EXPECT_EQ(out, "/tmp/session");
   EXPECT_EQ(x, 2.5);
+  EXPECT_TRUE(parser.IsSet("resume"));
+  EXPECT_TRUE(parser.IsSet("x"));
+  ASSERT_TRUE(ParseArgs(&parser, {"/tmp/other"}).ok());
+  EXPECT_FALSE(parser.IsSet("x"));  // Defaults and earlier parses do not count.
 }
 
 TEST(OptionParser, FlagTakesAnExplicitBooleanWord) {

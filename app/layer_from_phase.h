@@ -1,0 +1,31 @@
+// SPDX-License-Identifier: Apache-2.0
+// `thinslab fit tau --phase DIR`: the layer model a laser-lobe fit of the same layer chose
+// (docs/models/model_ladder.md), passed to the tau fit. DIR is a `thinslab fit phase` output:
+// summary.json (Gu Eq. 8 result, g) and, when written, ladder.json (the chosen rung). Rung 0
+// (attenuator: no scattered light seen) fits plain Eq. 7, rung 1 (Frisvad isotropic slab) the
+// refinement of Eqs. 5-6 with g = 0, rung 2 (Gu HG layer) with the fitted g. The albedo is not
+// measured by the lobe fit and stays the tau fit's option.
+#pragma once
+
+#include <string>
+
+#include "core/status.h"
+#include "fit/tau_fit.h"
+
+namespace thinslab {
+
+struct PhaseLayerChoice {
+  std::string summary_path;
+  std::string ladder_path;  // "" when the fit wrote no ladder.json (fewer than 10 rings).
+  int rung = 2;             // 0 attenuator, 1 isotropic slab, 2 HG layer.
+  double g = 0, sigma_g = 0;
+};
+
+// Errors name the file and field: a missing or malformed summary, a summary of another model,
+// a failed fit (no usable g), a ladder rung outside 0..2.
+Status ReadPhaseLayerChoice(const std::string& phase_dir, PhaseLayerChoice* choice);
+
+// Sets refine_scattering and layer_g from the choice.
+void ApplyPhaseLayerChoice(const PhaseLayerChoice& choice, TauFitOptions* options);
+
+}  // namespace thinslab
