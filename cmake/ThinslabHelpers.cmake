@@ -26,12 +26,25 @@ endfunction()
 
 # NAME is <folder>/<test>; the executable is <folder>_<test>.
 function(thinslab_add_test)
-  cmake_parse_arguments(ARG "" "NAME;TIMEOUT" "SRCS;LINK_LIBS;LABELS" ${ARGN})
+  # GTEST_FILTER (optional): the gtest filter this ctest entry runs; further entries for the same
+  # executable come from thinslab_add_test_entry.
+  cmake_parse_arguments(ARG "" "NAME;TIMEOUT;GTEST_FILTER" "SRCS;LINK_LIBS;LABELS" ${ARGN})
   string(REPLACE "/" "_" exe ${ARG_NAME})
   add_executable(${exe} ${ARG_SRCS})
   target_compile_options(${exe} PRIVATE ${THINSLAB_WARNING_FLAGS})
   target_link_libraries(${exe} PRIVATE ${ARG_LINK_LIBS} GTest::gtest GTest::gtest_main GTest::gmock)
-  add_test(NAME ${ARG_NAME} COMMAND ${exe})
+  thinslab_add_test_entry(NAME ${ARG_NAME} EXE ${exe} TIMEOUT "${ARG_TIMEOUT}" GTEST_FILTER "${ARG_GTEST_FILTER}"
+                          LABELS ${ARG_LABELS})
+endfunction()
+
+# Another ctest entry (its own name, labels and gtest filter) for a test executable.
+function(thinslab_add_test_entry)
+  cmake_parse_arguments(ARG "" "NAME;EXE;TIMEOUT;GTEST_FILTER" "LABELS" ${ARGN})
+  if(ARG_GTEST_FILTER)
+    add_test(NAME ${ARG_NAME} COMMAND ${ARG_EXE} --gtest_filter=${ARG_GTEST_FILTER})
+  else()
+    add_test(NAME ${ARG_NAME} COMMAND ${ARG_EXE})
+  endif()
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 600)
   endif()
