@@ -23,6 +23,8 @@ nlohmann::json CalibrationSummaryJson(const SessionCalibration& calibration) {
   j["monitor"] = calibration.monitor.present;
   j["response"] = calibration.response_file.empty() ? nlohmann::json() : nlohmann::json(calibration.response_file);
   j["response_method"] = calibration.response_file.empty() ? std::string("linear") : calibration.response.method;
+  j["flat_field"] =
+      calibration.flat_field_file.empty() ? nlohmann::json() : nlohmann::json(calibration.flat_field_file);
   return j;
 }
 

@@ -150,7 +150,9 @@ void AddFitTauOptions(OptionParser* parser, FitTauRun* run) {
   parser->AddBool("refine", &fit.refine_scattering, "model the scattered light (Gu Eq. 6); false = plain Eq. 7");
   parser->AddDouble("albedo", &fit.layer_albedo, "layer single-scattering albedo omega0 [0, 1]");
   parser->AddDouble("g", &fit.layer_g, "layer Henyey-Greenstein g (-1, 1)");
-  parser->AddString("reference", &fit.reference, "'frame' (clean-glass frames) or 'auto' (fit to clean regions)");
+  parser->AddString("reference", &fit.reference,
+                    "'frame' (clean-glass frames), 'auto' (surface fitted to clean regions) or 'flat' "
+                    "(calib/flat_field.exr scaled to clean regions)");
   parser->AddDouble("tau-max", &fit.tau_max, "largest tau; darker pixels are clamped and flagged");
   parser->AddDouble("min-reference-fraction", &fit.min_reference_fraction, "dark mask threshold (of median)");
   parser->AddDouble("max-sigma-tau", &fit.max_sigma_tau, "tau noise above this: status 1 (dark)");

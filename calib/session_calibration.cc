@@ -3,6 +3,7 @@
 
 #include <cmath>
 
+#include "core/exr_io.h"
 #include "core/file.h"
 
 namespace thinslab {
@@ -35,6 +36,7 @@ std::string SessionCalibration::Describe() const {
   if (!response_file.empty()) {
     out += (out.empty() ? "" : ", ") + response_file + " (" + response.method + ")";
   }
+  if (!flat_field_file.empty()) out += (out.empty() ? "" : ", ") + flat_field_file;
   return out.empty() ? "none (manifest geometry, linear camera)" : out;
 }
 
@@ -86,8 +88,33 @@ Status LoadSessionCalibration(const std::string& session_dir, const SessionCalib
     calibration->pose = rig.pose.present;
     calibration->monitor = rig.monitor;
   }
-  return LoadCameraResponse(session_dir, options.response_path, *camera, &calibration->response,
-                            &calibration->response_file);
+  THINSLAB_RETURN_IF_ERROR(LoadCameraResponse(session_dir, options.response_path, *camera, &calibration->response,
+                                              &calibration->response_file));
+  const std::string flat_path = JoinPath(JoinPath(session_dir, "calib"), "flat_field.exr");
+  if (!options.flat_field || !FileExists(flat_path)) return Status::Ok();
+  Image flat;
+  THINSLAB_RETURN_IF_ERROR(ReadExr(flat_path, &flat));
+  const int flat_c = flat.ChannelIndex("flat"), valid_c = flat.ChannelIndex("valid");
+  if (flat_c < 0 || valid_c < 0) return Status::Error(flat_path + ": expected channels 'flat' and 'valid'");
+  if (flat.width() != camera->width_px || flat.height() != camera->height_px) {
+    return Status::Error(flat_path + ": " + std::to_string(flat.width()) + "x" + std::to_string(flat.height()) +
+                         ", camera '" + camera->id + "' is " + std::to_string(camera->width_px) + "x" +
+                         std::to_string(camera->height_px));
+  }
+  const auto id = flat.attributes().find("camera");
+  if (id != flat.attributes().end() && id->second != camera->id) {
+    return Status::Error(flat_path + ": camera attribute '" + id->second + "', the session's camera is '" +
+                         camera->id + "'");
+  }
+  calibration->flat_field = Image(flat.width(), flat.height());
+  for (int y = 0; y < flat.height(); ++y) {
+    for (int x = 0; x < flat.width(); ++x) {
+      const float v = flat.at(x, y, flat_c);
+      calibration->flat_field.at(x, y) = flat.at(x, y, valid_c) > 0 && std::isfinite(v) && v > 0 ? v : 0.0f;
+    }
+  }
+  calibration->flat_field_file = flat_path;
+  return Status::Ok();
 }
 
 void LinearizeFrame(const CameraResponse* response, Image* dn) {

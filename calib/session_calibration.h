@@ -2,7 +2,7 @@
 // The calibration the fit stage applies to a capture (docs/format.md, "Calibration read by the
 // fits"): SESSION/calib/rig.json replaces the manifest camera's intrinsics, distortion and pose
 // and supplies the measured CRT dot geometry; SESSION/calib/response.json linearises every
-// frame. The preparations (calib/shadow_map_preparation.h, calib/laser_lobe_preparation.h,
+// frame; SESSION/calib/flat_field.exr is the projector flat field of shadow-map sessions. The preparations (calib/shadow_map_preparation.h, calib/laser_lobe_preparation.h,
 // fit/dmf_processing.h) load it, so every fit of a calibrated session uses the same numbers the
 // calibration commands wrote, and say which files they used.
 #pragma once
@@ -11,6 +11,7 @@
 
 #include "calib/response_io.h"
 #include "calib/rig_io.h"
+#include "core/image.h"
 #include "core/session.h"
 #include "core/status.h"
 
@@ -22,6 +23,8 @@ struct SessionCalibrationOptions {
   std::string mode = "auto";
   std::string rig_path;       // Explicit rig.json ("" = SESSION/calib/rig.json in auto mode).
   std::string response_path;  // Explicit response.json, or "linear" ("" = SESSION/calib/response.json).
+  // Also load SESSION/calib/flat_field.exr if present (set by the shadow-map preparation).
+  bool flat_field = false;
 
   bool Check(std::string* error) const;
 };
@@ -33,6 +36,8 @@ struct SessionCalibration {
   RigMonitorCalibration monitor;  // Its monitor section (present = false if none).
   std::string response_file;  // response.json used ("" = linear camera).
   CameraResponse response;
+  std::string flat_field_file;  // flat_field.exr loaded ("" = none).
+  Image flat_field;             // Its "flat" channel, 0 where its "valid" is 0; camera grid.
 
   const CameraResponse* response_or_null() const { return response_file.empty() ? nullptr : &response; }
   // One line for reports: "rig.json (intrinsics, pose), response.json (debevec)" or "none".

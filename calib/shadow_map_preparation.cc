@@ -118,8 +118,9 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
     return Status::Error(manifest + ": rig.board: missing; a shadow-map session needs the board distance");
   }
   maps->camera = session.rig.cameras[0];
-  THINSLAB_RETURN_IF_ERROR(
-      LoadSessionCalibration(session_dir, options.calibration, &maps->camera, &maps->calibration));
+  SessionCalibrationOptions calibration = options.calibration;
+  calibration.flat_field = calibration.mode != "none";
+  THINSLAB_RETURN_IF_ERROR(LoadSessionCalibration(session_dir, calibration, &maps->camera, &maps->calibration));
   const CameraInfo& camera = maps->camera;
   const CameraResponse* response = maps->calibration.response_or_null();
   auto of_camera = [&](std::vector<const FrameRecord*> frames) {
@@ -183,6 +184,16 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
     }
   }
   maps->saturated = rectifier.RectifyAny(saturated);
+  if (!maps->calibration.flat_field.empty()) {
+    // A map pixel touching an invalid flat-field pixel gets no flat (0).
+    Image invalid(camera.width_px, camera.height_px);
+    for (size_t i = 0; i < invalid.data().size(); ++i) invalid.data()[i] = maps->calibration.flat_field.data()[i] > 0 ? 0 : 1;
+    maps->flat = rectifier.Rectify(maps->calibration.flat_field);
+    const Image flat_invalid = rectifier.RectifyAny(invalid);
+    for (size_t i = 0; i < maps->flat.data().size(); ++i) {
+      if (flat_invalid.data()[i] > 0) maps->flat.data()[i] = 0;
+    }
+  }
   return Status::Ok();
 }
 

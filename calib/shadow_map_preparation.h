@@ -33,6 +33,8 @@ struct RectifiedShadowMaps {
   Image reference_variance;  // Variance of `reference`.
   Image saturated;           // 1 where a contributing raw pixel saturated in any frame.
   Image outside;             // 1 where the board point is outside the camera image.
+  // calib/flat_field.exr rectified (unitless, 0 where invalid); empty when the session has none.
+  Image flat;
   Eigen::Vector2d region_min_m = Eigen::Vector2d::Zero();
   double pixel_pitch_m = 0;
   double board_distance_m = 0;

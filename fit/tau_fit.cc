@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <sstream>
 #include <vector>
@@ -24,8 +25,8 @@ bool TauFitOptions::Check(std::string* error) const {
     msg << "TauFitOptions::layer_albedo = " << layer_albedo << ". Violated constraint: [0, 1]";
   } else if (!(layer_g > -1 && layer_g < 1)) {
     msg << "TauFitOptions::layer_g = " << layer_g << ". Violated constraint: (-1, 1)";
-  } else if (reference != "frame" && reference != "auto") {
-    msg << "TauFitOptions::reference = '" << reference << "'. Violated constraint: 'frame' or 'auto'";
+  } else if (reference != "frame" && reference != "auto" && reference != "flat") {
+    msg << "TauFitOptions::reference = '" << reference << "'. Violated constraint: 'frame', 'auto' or 'flat'";
   } else if (!(tau_max > 0 && tau_max <= 20)) {
     msg << "TauFitOptions::tau_max = " << tau_max << ". Violated constraint: (0, 20]";
   } else if (!(min_reference_fraction > 0 && min_reference_fraction < 1)) {
@@ -84,29 +85,30 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
 
-// Quadratic surface through the clean part of the shadow image: iteratively keeps pixels no
-// more than 2.5 robust sigmas below the current fit (contaminant only darkens, Eq. 5).
-// Not in Gu et al. 2007, which takes I_clean from clean regions by hand.
-Status FitAutoReference(const Image& shadow, const std::vector<uint8_t>& usable, Image* reference) {
+// A linear model sum_c coef_c basis_c(i) (at most 6 terms) through the clean part of the shadow
+// image: iteratively keeps pixels no more than 2.5 robust sigmas below the current fit
+// (contaminant only darkens, Eq. 5). Not in Gu et al. 2007, which takes I_clean from clean
+// regions by hand.
+constexpr int kMaxBasis = 6;
+using CleanBasis = std::function<void(int pixel, double* b)>;
+
+Status FitCleanReference(const Image& shadow, const std::vector<uint8_t>& usable, int num_basis,
+                         const CleanBasis& basis, const std::string& name, Image* reference) {
   const int w = shadow.width(), h = shadow.height();
   std::vector<int> keep;
   for (int i = 0; i < w * h; ++i) {
     if (usable[i]) keep.push_back(i);
   }
   const size_t total = keep.size();
-  if (total < 50) return Status::Error("auto reference: fewer than 50 usable pixels");
-  auto basis = [&](int i, double* b) {
-    const double x = ((i % w) + 0.5) / w - 0.5, y = ((i / w) + 0.5) / h - 0.5;
-    b[0] = 1; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
-  };
-  Eigen::Matrix<double, 6, 1> coef = Eigen::Matrix<double, 6, 1>::Zero();
+  if (total < 50) return Status::Error(name + " reference: fewer than 50 usable pixels");
+  Eigen::VectorXd coef = Eigen::VectorXd::Zero(num_basis);
   for (int iteration = 0; iteration < 50; ++iteration) {
-    Eigen::MatrixXd a(keep.size(), 6);
+    Eigen::MatrixXd a(keep.size(), num_basis);
     Eigen::VectorXd rhs(keep.size());
     for (size_t k = 0; k < keep.size(); ++k) {
-      double b[6];
+      double b[kMaxBasis];
       basis(keep[k], b);
-      for (int c = 0; c < 6; ++c) a(k, c) = b[c];
+      for (int c = 0; c < num_basis; ++c) a(k, c) = b[c];
       rhs(k) = shadow.data()[keep[k]];
     }
     coef = a.colPivHouseholderQr().solve(rhs);
@@ -124,25 +126,25 @@ Status FitAutoReference(const Image& shadow, const std::vector<uint8_t>& usable,
     std::vector<int> next;
     for (int i = 0; i < w * h; ++i) {
       if (!usable[i]) continue;
-      double b[6];
+      double b[kMaxBasis];
       basis(i, b);
       double fit = 0;
-      for (int c = 0; c < 6; ++c) fit += b[c] * coef(c);
+      for (int c = 0; c < num_basis; ++c) fit += b[c] * coef(c);
       if (shadow.data()[i] >= fit - 2.5 * sigma) next.push_back(i);
     }
     if (next.size() == keep.size()) break;
     keep.swap(next);
   }
   if (keep.size() < total / 10) {
-    return Status::Error("auto reference: fewer than 10% of the pixels look clean (" + std::to_string(keep.size()) +
+    return Status::Error(name + " reference: fewer than 10% of the pixels look clean (" + std::to_string(keep.size()) +
                          " of " + std::to_string(total) + "); capture a reference frame of clean glass");
   }
   *reference = Image(w, h);
   for (int i = 0; i < w * h; ++i) {
-    double b[6];
+    double b[kMaxBasis];
     basis(i, b);
     double fit = 0;
-    for (int c = 0; c < 6; ++c) fit += b[c] * coef(c);
+    for (int c = 0; c < num_basis; ++c) fit += b[c] * coef(c);
     reference->data()[i] = static_cast<float>(fit);
   }
   return Status::Ok();
@@ -185,10 +187,27 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
                            "capture clean glass or use reference 'auto'");
     }
     reference = data.reference;
-  } else {
+  } else if (options.reference == "auto") {
     std::vector<uint8_t> usable(n);
     for (size_t i = 0; i < n; ++i) usable[i] = status[i] == 0 && data.shadow.data()[i] > 0;
-    THINSLAB_RETURN_IF_ERROR(FitAutoReference(data.shadow, usable, &reference));
+    auto quadratic = [w, h](int i, double* b) {
+      const double x = ((i % w) + 0.5) / w - 0.5, y = ((i / w) + 0.5) / h - 0.5;
+      b[0] = 1; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
+    };
+    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, usable, 6, quadratic, "auto", &reference));
+  } else {
+    if (data.flat.empty()) {
+      return Status::Error("FitTau: TauFitOptions::reference = 'flat' but the session has no calib/flat_field.exr; "
+                           "run `thinslab calib flat` or use reference 'frame' or 'auto'");
+    }
+    // Map pixels without a valid flat are masked as dark (no reference).
+    std::vector<uint8_t> usable(n);
+    for (size_t i = 0; i < n; ++i) {
+      if (status[i] == 0 && !(data.flat.data()[i] > 0)) status[i] = static_cast<uint8_t>(TauPixelStatus::kDark);
+      usable[i] = status[i] == 0 && data.shadow.data()[i] > 0;
+    }
+    auto flat = [&data](int i, double* b) { b[0] = data.flat.data()[i]; };
+    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, usable, 1, flat, "flat", &reference));
   }
   std::vector<float> ref_values;
   for (size_t i = 0; i < n; ++i) {

@@ -40,7 +40,9 @@ struct TauFitOptions {
   double layer_albedo = 0.3;
   double layer_g = 0.8;
   // "frame": the clean reference frames; "auto": a smooth (quadratic) surface fitted to the
-  // automatically found clean regions of the shadow frame.
+  // automatically found clean regions of the shadow frame; "flat": the projector flat field
+  // (calib/flat_field.exr, RectifiedShadowMaps::flat) times one scale fitted to those regions
+  // (Gu Sec. 5.1; the flat is smoothed, so it assumes a board without texture).
   std::string reference = "frame";
   // Largest representable tau; darker pixels are clamped and flagged.
   double tau_max = 4.0;

@@ -47,9 +47,11 @@ std::string FitTau(const std::string& session, const std::string& out, const std
   return r.output;
 }
 
-Image Patches() {
+// Four patches on a faint background (tau 0.05), or on clean glass (0) where a reference is
+// fitted to the clean regions.
+Image Patches(double background_tau = 0.05) {
   const double patch_taus[4] = {0.3, 0.8, 0.5, 1.2};
-  return PatchTau(kTextureSize, kTextureSize, patch_taus, 0.05);
+  return PatchTau(kTextureSize, kTextureSize, patch_taus, background_tau);
 }
 
 // A chessboard lying on the sample plane, photographed by the true camera with the rig's
@@ -210,6 +212,48 @@ TEST(CalibratedFit, DotScanTakesDotGeometryFromRigJson) {
   ASSERT_FALSE(refused.ok());
   EXPECT_NE(refused.message().find(rig_path), std::string::npos) << refused.message();
   EXPECT_NE(refused.message().find("35 calibrated dots, the scan shows 36"), std::string::npos) << refused.message();
+}
+
+// Gu Sec. 5.1 divides the shadow by the projector's flat illumination. `thinslab calib flat` on a
+// second capture of clean glass (own noise) writes calib/flat_field.exr; copied into a capture
+// without reference frames, `fit tau --reference flat` takes the flat times one scale fitted to
+// the clean regions, and comes within 1.25x of the fit with its own reference frames.
+TEST(CalibratedFit, FlatFieldStandsInForReferenceFrames) {
+  TempDir dir;
+  const std::string session = dir / "session", other = dir / "other";
+  ASSERT_TRUE(SynthesizeShadowMapSession(SmallShadowMapRig(9), Patches(0), session).ok());
+  ASSERT_TRUE(SynthesizeShadowMapSession(SmallShadowMapRig(10), Patches(0), other).ok());
+  FitTau(session, dir / "nominal", "");
+
+  const RunResult flat = RunThinslab("calib flat " + other + " --kind reference");
+  ASSERT_EQ(flat.exit_code, 0) << flat.output;
+  std::filesystem::create_directories(session + "/calib");
+  std::filesystem::copy_file(other + "/calib/flat_field.exr", session + "/calib/flat_field.exr");
+  Session manifest;
+  ASSERT_TRUE(ReadSession(session, &manifest).ok());
+  std::vector<FrameRecord> kept;
+  for (FrameRecord f : manifest.frames) {
+    if (f.kind == "reference") continue;
+    f.index = static_cast<int>(kept.size());
+    kept.push_back(f);
+  }
+  manifest.frames = kept;
+  ASSERT_TRUE(WriteSession(session, manifest).ok());
+
+  FitTau(session, dir / "flat", "--reference flat");
+  FitTau(session, dir / "auto", "--reference auto");
+  const double nominal = RefinedRmsRelative(dir / "nominal"), with_flat = RefinedRmsRelative(dir / "flat"),
+               with_auto = RefinedRmsRelative(dir / "auto");
+  std::printf("tau RMS relative error: reference frames %.4f, flat field of another capture %.4f, "
+              "quadratic surface %.4f\n",
+              nominal, with_flat, with_auto);
+  EXPECT_LT(with_flat, 1.25 * nominal);
+  EXPECT_EQ(ReadJson(dir / "flat/summary.json")["calibration"]["flat_field"].get<std::string>(),
+            session + "/calib/flat_field.exr");
+
+  const RunResult none = RunThinslab("fit tau " + session + " --reference flat --calibration none --out " + (dir / "x"));
+  EXPECT_EQ(none.exit_code, 1);
+  EXPECT_NE(none.output.find("no calib/flat_field.exr"), std::string::npos) << none.output;
 }
 
 TEST(CalibratedFit, CalibrationOfAnotherCameraIsRefusedNamingTheFile) {
