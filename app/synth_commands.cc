@@ -85,6 +85,13 @@ std::string PanelsJson(const std::vector<PanePreviewPanel>& panels) {
   return j.dump(2) + "\n";
 }
 
+// A --width / --height value, checked before anything runs so that the message names it.
+Status CheckSideOption(const std::string& option, int value_px) {
+  if (value_px >= 1 && value_px <= kMaxSynthesisSidePx) return Status::Ok();
+  return Status::Error("--" + option + " " + std::to_string(value_px) + " is impossible: each side must be in [1, " +
+                       std::to_string(kMaxSynthesisSidePx) + "] px");
+}
+
 int Fail(const Status& status) {
   std::cerr << "error: " << status.message() << "\n";
   return 1;
@@ -182,8 +189,18 @@ int RunLayer(int argc, char** argv) {
       options.layers.push_back(spec);
     }
   }
+  if (status.ok() && width != -1) status = CheckSideOption("width", width);
+  if (status.ok() && height != -1) status = CheckSideOption("height", height);
+  if (status.ok() && preview && preview_px < 8) {
+    status = Status::Error("--preview-px " + std::to_string(preview_px) + ": must be >= 8");
+  }
   if (width != -1) options.width_px = width;
   if (height != -1) options.height_px = height;
+  if (status.ok() && static_cast<int64_t>(options.width_px) * options.height_px > kMaxSynthesisPixels) {
+    status =
+        Status::Error("--width " + std::to_string(options.width_px) + " --height " + std::to_string(options.height_px) +
+                      (spec_path.empty() ? "" : " (or " + spec_path + ")") + ": more than 2^26 pixels (8192x8192)");
+  }
   if (status.ok() && !seed_text.empty()) {
     char* end = nullptr;
     errno = 0;
@@ -198,7 +215,12 @@ int RunLayer(int argc, char** argv) {
   if (status.ok()) status = ReadPrototypeLibrary(library, &library_prototypes);
   Image layer;
   SynthesisSummary summary;
-  if (status.ok()) status = SynthesizeContamination(library_prototypes, options, &layer, &summary);
+  // Errors name where the layers came from (an unknown prototype, a bad density).
+  const std::string layers_from = spec_path.empty() ? "--prototypes " + prototypes : spec_path;
+  if (status.ok()) {
+    status = SynthesizeContamination(library_prototypes, options, &layer, &summary)
+                 .WithContext(layers_from + " (library " + library + ")");
+  }
   Image background;
   if (status.ok() && !background_path.empty()) status = ReadBackgroundImage(background_path, &background);
   std::vector<PanePreviewPanel> panels;

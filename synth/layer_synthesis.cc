@@ -74,10 +74,10 @@ Status ReadNumber(const nlohmann::json& j, const std::string& where, const std::
 
 bool SynthesisOptions::Check(std::string* error) const {
   std::ostringstream e;
-  if (width_px < 1 || height_px < 1 || width_px > 16384 || height_px > 16384) {
-    e << "SynthesisOptions::size = " << width_px << "x" << height_px
-      << " is impossible: each side must be in [1, 16384] px";
-  } else if (static_cast<int64_t>(width_px) * height_px > (int64_t{1} << 26)) {
+  if (width_px < 1 || height_px < 1 || width_px > kMaxSynthesisSidePx || height_px > kMaxSynthesisSidePx) {
+    e << "SynthesisOptions::size = " << width_px << "x" << height_px << " is impossible: each side must be in [1, "
+      << kMaxSynthesisSidePx << "] px";
+  } else if (static_cast<int64_t>(width_px) * height_px > kMaxSynthesisPixels) {
     e << "SynthesisOptions::size = " << width_px << "x" << height_px << " has more than 2^26 pixels (8192x8192)";
   } else if (!(pixel_pitch_m >= 0 && std::isfinite(pixel_pitch_m))) {
     e << "SynthesisOptions::pixel_pitch_m = " << pixel_pitch_m << ". Violated constraint: >= 0";
@@ -103,6 +103,13 @@ Status ReadSynthesisSpec(const std::string& path, SynthesisOptions* options) {
   }
   THINSLAB_RETURN_IF_ERROR(ReadNumber(j, path, "width_px", &options->width_px));
   THINSLAB_RETURN_IF_ERROR(ReadNumber(j, path, "height_px", &options->height_px));
+  for (const auto& [key, value] : {std::pair<const char*, int>{"width_px", options->width_px},
+                                   std::pair<const char*, int>{"height_px", options->height_px}}) {
+    if (value < 1 || value > kMaxSynthesisSidePx) {
+      return Status::Error(path + ": field '" + key + "' = " + std::to_string(value) +
+                           " is impossible: each side must be in [1, " + std::to_string(kMaxSynthesisSidePx) + "] px");
+    }
+  }
   THINSLAB_RETURN_IF_ERROR(ReadNumber(j, path, "seed", &options->seed));
   THINSLAB_RETURN_IF_ERROR(ReadNumber(j, path, "pixel_pitch_m", &options->pixel_pitch_m));
   if (!j.contains("layers") || !j["layers"].is_array())
@@ -274,6 +281,8 @@ std::string SynthesisSummary::ToJson() const {
     if (l.method == "quilting") {
       e["patches"] = l.quilting.patches;
       e["candidates_evaluated"] = l.quilting.candidates_evaluated;
+      e["source_zero_fraction"] = l.quilting.source_zero_fraction;
+      e["quilted_zero_fraction"] = l.quilting.quilted_zero_fraction;
     } else {
       e["copies"] = nlohmann::json::array();
       for (const auto& c : l.copies) {

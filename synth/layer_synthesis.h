@@ -36,8 +36,11 @@ struct SynthLayerSpec {
   QuiltingOptions quilting;    // Dust; seed is set per layer.
 };
 
+inline constexpr int kMaxSynthesisSidePx = 16384;
+inline constexpr int64_t kMaxSynthesisPixels = int64_t{1} << 26;
+
 struct SynthesisOptions {
-  int width_px = 1024;  // Output size, each side in [1, 16384]; width * height <= 2^26.
+  int width_px = 1024;  // Output size, each side in [1, kMaxSynthesisSidePx]; width * height <= 2^26.
   int height_px = 1024;
   uint64_t seed = 1;  // Fixes every random choice; same seed, same bits.
   // Pitch of the output [m]; 0 = the first layer's prototype pitch. Prototypes of another

@@ -68,6 +68,34 @@ std::vector<int> MinErrorCut(const std::vector<double>& err, int lines, int widt
 
 }  // namespace
 
+void SpecifyHistogram(const std::vector<float>& source, std::vector<float>* values) {
+  if (source.empty() || values->empty()) return;
+  std::vector<float> sorted_source = source;
+  std::sort(sorted_source.begin(), sorted_source.end());
+  std::vector<std::pair<float, size_t>> order(values->size());
+  for (size_t i = 0; i < values->size(); ++i) order[i] = {(*values)[i], i};
+  std::sort(order.begin(), order.end());
+  const double n_out = static_cast<double>(order.size()), n_src = static_cast<double>(sorted_source.size());
+  for (size_t a = 0; a < order.size();) {
+    size_t b = a;
+    while (b < order.size() && order[b].first == order[a].first) ++b;
+    float target = 0.0f;
+    // Clean glass stays clean: the group of exact zeros keeps 0, even when the output has
+    // more zeros than the source (its mid-rank quantile would then be a positive source value,
+    // a haze over every clean pixel). Every other group takes the source value at its mid-rank
+    // quantile over the whole output, so the positive values keep their place in the source
+    // distribution and, when the output has fewer zeros than the source, its faintest values
+    // become 0 until the source's zero fraction is reached.
+    if (order[a].first != 0.0f) {
+      const double mid_rank = 0.5 * (static_cast<double>(a) + static_cast<double>(b - 1));
+      const size_t k = n_out > 1 ? static_cast<size_t>(std::llround(mid_rank * (n_src - 1) / (n_out - 1))) : 0;
+      target = sorted_source[std::min(k, sorted_source.size() - 1)];
+    }
+    for (size_t i = a; i < b; ++i) (*values)[order[i].second] = target;
+    a = b;
+  }
+}
+
 Status QuiltTexture(const Image& source, int width, int height, const QuiltingOptions& options, Image* output,
                     Image* patch_index, QuiltingSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
@@ -201,27 +229,6 @@ Status QuiltTexture(const Image& source, int width, int height, const QuiltingOp
   }
 
   *output = Image(width, height, {"tau"});
-  if (options.match_histogram) {
-    // Exact histogram specification over the output window (ties share one value).
-    std::vector<float> sorted_src = src;
-    std::sort(sorted_src.begin(), sorted_src.end());
-    std::vector<std::pair<float, int64_t>> order;
-    order.reserve(static_cast<size_t>(width) * height);
-    for (int y = 0; y < height; ++y) {
-      for (int x = 0; x < width; ++x)
-        order.emplace_back(canvas[static_cast<size_t>(y) * cw + x], static_cast<int64_t>(y) * cw + x);
-    }
-    std::sort(order.begin(), order.end());
-    const double n_out = static_cast<double>(order.size()), n_src = static_cast<double>(sorted_src.size());
-    for (size_t a = 0; a < order.size();) {
-      size_t b = a;
-      while (b < order.size() && order[b].first == order[a].first) ++b;
-      const double mid_rank = 0.5 * (static_cast<double>(a) + static_cast<double>(b - 1));
-      const size_t k = n_out > 1 ? static_cast<size_t>(std::llround(mid_rank * (n_src - 1) / (n_out - 1))) : 0;
-      for (size_t i = a; i < b; ++i) canvas[order[i].second] = sorted_src[std::min(k, sorted_src.size() - 1)];
-      a = b;
-    }
-  }
   if (patch_index) *patch_index = Image(width, height, {"patch_index"});
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
@@ -229,6 +236,11 @@ Status QuiltTexture(const Image& source, int width, int height, const QuiltingOp
       if (patch_index) patch_index->at(x, y) = static_cast<float>(ids[static_cast<size_t>(y) * cw + x]);
     }
   }
+  local.source_zero_fraction =
+      static_cast<double>(std::count(src.begin(), src.end(), 0.0f)) / static_cast<double>(src.size());
+  local.quilted_zero_fraction = static_cast<double>(std::count(output->data().begin(), output->data().end(), 0.0f)) /
+                                static_cast<double>(output->data().size());
+  if (options.match_histogram) SpecifyHistogram(src, &output->data());
   local.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (summary) *summary = local;
   return Status::Ok();

@@ -8,6 +8,8 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+#include <vector>
 
 #include "core/image.h"
 #include "core/status.h"
@@ -29,12 +31,11 @@ struct QuiltingOptions {
   // this many, else this many drawn uniformly (seeded). 0 = always all. Bounds the cost of
   // large outputs (bench/synth_bench.cc).
   int max_candidates = 1024;
-  // Not in Efros-Freeman: afterwards, give the output exactly the source's value histogram
-  // (exact histogram specification: each group of equal output values takes the source
-  // quantile at the group's mid-rank, so every output value is a source value and the spatial
-  // order is kept). Patch selection prefers clean overlaps in a sparse texture and quilting
-  // alone loses 10-20% of the dust (measured, docs/models/contamination_synthesis.md); the
-  // amount of dust (mean tau) is the physical quantity to keep.
+  // Not in Efros-Freeman: afterwards, give the output the source's value histogram
+  // (SpecifyHistogram below: every output value is a source value, the spatial order is kept
+  // and clean pixels, tau = 0, stay exactly 0). Patch selection prefers clean overlaps in a
+  // sparse texture and quilting alone loses dust (measured, docs/models/contamination_synthesis.md,
+  // Sec. 4); the amount of dust (mean tau) is the physical quantity to keep.
   bool match_histogram = true;
   uint64_t seed = 1;
 
@@ -44,6 +45,10 @@ struct QuiltingOptions {
 struct QuiltingSummary {
   int patches = 0;
   int64_t candidates_evaluated = 0;
+  // Shares of exact zeros (clean pixels) in the source and in the quilted output before
+  // QuiltingOptions::match_histogram. An output cleaner than its source keeps its extra clean
+  // area (SpecifyHistogram), so its histogram and mean tau cannot match the source's exactly.
+  double source_zero_fraction = 0, quilted_zero_fraction = 0;
   double total_s = 0;
 };
 
@@ -54,6 +59,15 @@ struct QuiltingSummary {
 // measure seam visibility.
 // Errors: invalid options, a source smaller than one patch or with non-finite values, an
 // output size outside [1, 65536] per side. Same inputs and seed give bit-identical output.
+// Exact histogram specification (not in Efros-Freeman; after Heeger and Bergen 1995): gives
+// `values` the value histogram of `source` while keeping their order. Equal values form one
+// group, which takes the source value at the group's mid-rank quantile, so every result is a
+// source value. Exception: exact zeros stay 0 (clean glass never gets a haze), so when
+// `values` holds a larger share of zeros than `source`, the result keeps that share and its
+// positive values are the source's upper quantiles; when it holds a smaller share, its
+// faintest values become 0 until the source's share is reached.
+void SpecifyHistogram(const std::vector<float>& source, std::vector<float>* values);
+
 Status QuiltTexture(const Image& source, int width, int height, const QuiltingOptions& options, Image* output,
                     Image* patch_index = nullptr, QuiltingSummary* summary = nullptr);
 

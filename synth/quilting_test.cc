@@ -9,9 +9,15 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <iostream>
 #include <random>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "core/math.h"
+#include "synth/prototype_library.h"
+#include "synth/texture_statistics.h"
 
 namespace thinslab {
 namespace {
@@ -36,68 +42,6 @@ Image DustTexture(int w, int h, int specks, uint64_t seed) {
   return tau;
 }
 
-// Two-sample Kolmogorov-Smirnov statistic of the pixel values.
-double KsDistance(const Image& a, const Image& b) {
-  std::vector<float> x = a.data(), y = b.data();
-  std::sort(x.begin(), x.end());
-  std::sort(y.begin(), y.end());
-  size_t i = 0, j = 0;
-  double d = 0;
-  while (i < x.size() && j < y.size()) {
-    const float v = std::min(x[i], y[j]);
-    while (i < x.size() && x[i] <= v) ++i;
-    while (j < y.size() && y[j] <= v) ++j;
-    d = std::max(d, std::abs(static_cast<double>(i) / x.size() - static_cast<double>(j) / y.size()));
-  }
-  return d;
-}
-
-// Normalised autocovariance at lag (dx, dy), over the pixels where both ends are inside.
-double Autocorrelation(const Image& t, int dx, int dy) {
-  double mean = 0;
-  for (float v : t.data()) mean += v;
-  mean /= t.data().size();
-  double var = 0, cov = 0;
-  int64_t n = 0;
-  for (float v : t.data()) var += Sqr(v - mean);
-  var /= t.data().size();
-  for (int y = 0; y + dy < t.height(); ++y) {
-    for (int x = 0; x + dx < t.width(); ++x) {
-      cov += (t.at(x, y) - mean) * (t.at(x + dx, y + dy) - mean);
-      ++n;
-    }
-  }
-  return cov / n / var;
-}
-
-// Boundary error: mean |difference| between 4-neighbours that come from different patches
-// (across a seam), divided by the same over neighbours from the same patch. A visible seam
-// is a jump, so it raises the ratio above 1; an invisible one keeps it near or below 1 (the
-// minimum-error cut runs where the two patches agree).
-double SeamRatio(const Image& t, const Image& ids) {
-  double across = 0, within = 0;
-  int64_t n_across = 0, n_within = 0;
-  for (int y = 0; y < t.height(); ++y) {
-    for (int x = 0; x < t.width(); ++x) {
-      for (int k = 0; k < 2; ++k) {
-        const int x2 = x + (k == 0), y2 = y + (k == 1);
-        if (x2 >= t.width() || y2 >= t.height()) continue;
-        const double d = std::abs(t.at(x, y) - t.at(x2, y2));
-        if (ids.at(x, y) != ids.at(x2, y2)) {
-          across += d;
-          ++n_across;
-        } else {
-          within += d;
-          ++n_within;
-        }
-      }
-    }
-  }
-  EXPECT_GT(n_across, 0);
-  EXPECT_GT(n_within, 0);
-  return (across / n_across) / (within / n_within);
-}
-
 // Naive tiling (random source blocks side by side, no overlap, no cut): the negative control
 // that shows the seam measure can fail.
 void NaiveTiling(const Image& src, int w, int h, int block, uint64_t seed, Image* out, Image* ids) {
@@ -119,46 +63,181 @@ void NaiveTiling(const Image& src, int w, int h, int block, uint64_t seed, Image
   }
 }
 
-TEST(QuiltingTest, ReproducesHistogramAndAutocorrelation) {
-  const Image source = DustTexture(128, 128, 110, 3);
-  QuiltingOptions options;
-  options.seed = 11;
+// The statistics of one quilted output against its source.
+struct QuiltStatistics {
+  double ks = 0, mean_ratio = 0, autocorrelation_deviation = 0, seam_ratio = 0;
+  double source_zero_fraction = 0, output_zero_fraction = 0;
+};
+
+QuiltStatistics Measure(const Image& source, const Image& out, const Image& ids) {
+  QuiltStatistics s;
+  s.ks = KsDistance(source, out);
+  s.mean_ratio = MeanValue(out) / MeanValue(source);
+  s.autocorrelation_deviation = MaxAutocorrelationDeviation(out, source, 16);
+  s.seam_ratio = SeamRatio(out, ids).ratio;
+  s.source_zero_fraction = ZeroFraction(source);
+  s.output_zero_fraction = ZeroFraction(out);
+  return s;
+}
+
+QuiltStatistics QuiltAndMeasure(const Image& source, QuiltingOptions options, bool match_histogram) {
+  options.match_histogram = match_histogram;
   Image out, ids;
-  QuiltingSummary summary;
-  ASSERT_TRUE(QuiltTexture(source, 256, 256, options, &out, &ids, &summary).ok());
-  ASSERT_EQ(out.width(), 256);
-  ASSERT_EQ(out.height(), 256);
-  EXPECT_GT(summary.patches, 100);
-  // Histogram: two-sample KS distance of the tau values <= 0.05, and mean tau within 2%.
-  EXPECT_LE(KsDistance(source, out), 0.05);
-  double ms = 0, mo = 0;
-  for (float v : source.data()) ms += v;
-  for (float v : out.data()) mo += v;
-  ms /= source.data().size();
-  mo /= out.data().size();
-  EXPECT_NEAR(mo / ms, 1.0, 0.02);  // Histogram specification keeps the amount of dust.
-  // Autocorrelation: normalised autocovariance at lags 1..16 px along x and y within 0.1 of
-  // the source's (the specks are 2-8 px wide, so this covers their shape and spacing).
-  for (int lag = 1; lag <= 16; ++lag) {
-    EXPECT_NEAR(Autocorrelation(out, lag, 0), Autocorrelation(source, lag, 0), 0.1) << "x lag " << lag;
-    EXPECT_NEAR(Autocorrelation(out, 0, lag), Autocorrelation(source, 0, lag), 0.1) << "y lag " << lag;
+  const Status s = QuiltTexture(source, 256, 256, options, &out, &ids);
+  EXPECT_TRUE(s.ok()) << s.message();
+  return Measure(source, out, ids);
+}
+
+std::string ToString(const QuiltStatistics& s) {
+  std::ostringstream o;
+  o << "KS " << s.ks << ", mean ratio " << s.mean_ratio << ", autocorrelation deviation " << s.autocorrelation_deviation
+    << ", seam ratio " << s.seam_ratio << ", zeros " << s.source_zero_fraction << " -> " << s.output_zero_fraction;
+  return o.str();
+}
+
+// The statistics of quilting itself: QuiltingOptions::match_histogram is off, so nothing
+// after patch selection and the boundary cut touches the values. Five 128x128 dust sources
+// (110 specks each), 256x256 outputs, default options. Measured over these sources x 8 seeds
+// (DISABLED_MeasureStatistics below; docs/models/contamination_synthesis.md, Sec. 4):
+//   KS 0.051 mean / 0.130 worst, mean tau ratio 0.894 mean / 0.635 worst,
+//   autocorrelation deviation 0.067 / 0.106, seam ratio 0.92 / 1.07.
+// The autocorrelation (0.1) and seam (1.2) tolerances of the tests hold per run (one
+// of the 40 measured runs is at 0.106, not one of these). The histogram ones (KS 0.05, mean
+// tau within 2%) do not: patch selection favours candidates whose overlap holds little dust
+// and raw quilting loses 11% of it on average, up to 37%. Here the measured envelope (+15%)
+// guards raw quilting against getting worse; the histogram tolerances are asserted
+// on the remapped output (HistogramRemap... below), which is what `synth layer` writes.
+TEST(QuiltingTest, RawQuiltingReproducesHistogramAutocorrelationWithoutSeams) {
+  double ks_sum = 0, mean_ratio_sum = 0;
+  for (uint64_t source_seed = 1; source_seed <= 5; ++source_seed) {
+    const Image source = DustTexture(128, 128, 110, source_seed);
+    QuiltingOptions options;
+    options.seed = 10 + source_seed;
+    const QuiltStatistics s = QuiltAndMeasure(source, options, /*match_histogram=*/false);
+    SCOPED_TRACE("source seed " + std::to_string(source_seed) + ": " + ToString(s));
+    EXPECT_LE(s.autocorrelation_deviation, /*max_autocorrelation_abs_error=*/0.1);
+    EXPECT_LE(s.seam_ratio, /*max_seam_ratio=*/1.2);
+    EXPECT_LE(s.ks, /*max_raw_ks_distance=*/0.15);
+    EXPECT_GE(s.mean_ratio, /*min_raw_mean_tau_ratio=*/0.55);
+    EXPECT_LE(s.mean_ratio, /*max_raw_mean_tau_ratio=*/1.05);
+    ks_sum += s.ks;
+    mean_ratio_sum += s.mean_ratio;
+  }
+  // Averages over the five (measured 0.049 and 0.889).
+  EXPECT_LE(ks_sum / 5, /*max_raw_mean_ks_distance=*/0.06);
+  EXPECT_GE(mean_ratio_sum / 5, /*min_raw_mean_of_mean_tau_ratio=*/0.85);
+}
+
+TEST(QuiltingTest, NaiveTilingFailsTheSeamMeasure) {
+  // The negative control: random 32 px blocks side by side (no overlap, no cut) must show
+  // seams, or the measure above is blind.
+  const Image source = DustTexture(128, 128, 110, 5);
+  Image naive, naive_ids;
+  NaiveTiling(source, 256, 256, QuiltingOptions().patch_px, 2, &naive, &naive_ids);
+  EXPECT_GE(SeamRatio(naive, naive_ids).ratio, 1.5);
+}
+
+// What the remap (match_histogram, the default) does on top of quilting, same seed: it is a
+// monotone function of the raw output (spatial order kept, every value a source value),
+// clean pixels stay clean, and the histogram and the amount of dust come closer to the
+// source's than raw quilting's.
+TEST(QuiltingTest, HistogramRemapKeepsOrderAndCleanGlassAndMatchesTheSource) {
+  for (uint64_t source_seed = 1; source_seed <= 5; ++source_seed) {
+    const Image source = DustTexture(128, 128, 110, source_seed);
+    QuiltingOptions options;
+    options.seed = 10 + source_seed;
+    options.match_histogram = false;
+    Image raw, ids, remapped;
+    ASSERT_TRUE(QuiltTexture(source, 256, 256, options, &raw, &ids).ok());
+    options.match_histogram = true;
+    QuiltingSummary summary;
+    ASSERT_TRUE(QuiltTexture(source, 256, 256, options, &remapped, nullptr, &summary).ok());
+    const QuiltStatistics r = Measure(source, raw, ids), m = Measure(source, remapped, ids);
+    SCOPED_TRACE("source seed " + std::to_string(source_seed) + ": raw " + ToString(r) + "; remapped " + ToString(m));
+    EXPECT_DOUBLE_EQ(summary.quilted_zero_fraction, r.output_zero_fraction);
+    EXPECT_DOUBLE_EQ(summary.source_zero_fraction, r.source_zero_fraction);
+    // Order: sorting the pixels by raw value sorts the remapped values too.
+    std::vector<std::pair<float, float>> pairs;
+    for (size_t i = 0; i < raw.data().size(); ++i) pairs.emplace_back(raw.data()[i], remapped.data()[i]);
+    std::sort(pairs.begin(), pairs.end());
+    for (size_t i = 1; i < pairs.size(); ++i) ASSERT_LE(pairs[i - 1].second, pairs[i].second);
+    // Clean glass stays clean; a positive value becomes 0 only while the output has fewer
+    // zeros than the source (then exactly the source's share, up to one group of ties).
+    for (size_t i = 0; i < raw.data().size(); ++i) {
+      if (raw.data()[i] == 0.0f) {
+        ASSERT_EQ(remapped.data()[i], 0.0f) << "pixel " << i;
+      }
+    }
+    EXPECT_NEAR(m.output_zero_fraction, std::max(r.output_zero_fraction, r.source_zero_fraction), 0.002);
+    // Histogram: the tolerances (measured over 40 runs: KS 0.046 worst, mean tau
+    // ratio 0.9995 worst); the only remaining difference is the clean area quilting added.
+    EXPECT_LE(m.ks, /*max_ks_distance=*/0.05);
+    EXPECT_LE(m.ks, std::max(0.0, r.output_zero_fraction - r.source_zero_fraction) + 0.002);
+    EXPECT_LE(m.ks, r.ks + 1e-9);
+    EXPECT_NEAR(m.mean_ratio, 1.0, /*max_mean_tau_rel_error=*/0.02);
+    // The remap changes values, not places: the seam measure stays within tolerance
+    // (measured 1.07 worst).
+    EXPECT_LE(m.seam_ratio, /*max_seam_ratio=*/1.2);
   }
 }
 
-TEST(QuiltingTest, SeamsAreInvisibleButNaiveTilingSeamsAreNot) {
-  const Image source = DustTexture(128, 128, 110, 5);
-  QuiltingOptions options;
-  options.seed = 2;
-  Image out, ids;
-  ASSERT_TRUE(QuiltTexture(source, 256, 256, options, &out, &ids).ok());
-  const double quilted = SeamRatio(out, ids);
-  Image naive, naive_ids;
-  NaiveTiling(source, 256, 256, options.patch_px, 2, &naive, &naive_ids);
-  const double tiled = SeamRatio(naive, naive_ids);
-  // Stated tolerance (docs/models/contamination_synthesis.md): quilting seams <= 1.2x the
-  // within-patch difference; the naive control must exceed 1.5x, or the measure is blind.
-  EXPECT_LE(quilted, 1.2) << "naive tiling: " << tiled;
-  EXPECT_GE(tiled, 1.5) << "quilted: " << quilted;
+// A dense dust field (few clean pixels) with one clean 64x64 block: about a quarter of the
+// source is clean glass. A small output whose first patch lands in the block stays clean
+// (a clean overlap is matched best by clean candidates), so it has more than twice the
+// source's clean share. The old mid-rank rule then gave the whole zero group the source
+// quantile at half the output's clean share, a positive tau: a haze over all clean glass.
+// Over many seeds, every pixel that quilting left clean must stay exactly 0.
+TEST(QuiltingTest, CleanGlassStaysCleanWhenTheOutputIsCleanerThanTheSource) {
+  Image source = DustTexture(128, 128, 300, 8);
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 64; ++x) source.at(x, y) = 0.0f;
+  }
+  int cleaner_outputs = 0;
+  for (uint64_t seed = 1; seed <= 60; ++seed) {
+    QuiltingOptions options;
+    options.seed = seed;
+    options.match_histogram = false;
+    Image raw, remapped;
+    QuiltingSummary summary;
+    ASSERT_TRUE(QuiltTexture(source, 64, 64, options, &raw).ok());
+    options.match_histogram = true;
+    ASSERT_TRUE(QuiltTexture(source, 64, 64, options, &remapped, nullptr, &summary).ok());
+    cleaner_outputs += summary.quilted_zero_fraction > 2 * summary.source_zero_fraction;
+    for (size_t i = 0; i < raw.data().size(); ++i) {
+      if (raw.data()[i] == 0.0f) {
+        ASSERT_EQ(remapped.data()[i], 0.0f)
+            << "seed " << seed << ": clean pixel " << i << " got a haze (" << summary.source_zero_fraction
+            << " clean in the source, " << summary.quilted_zero_fraction << " in the output)";
+      }
+    }
+  }
+  std::cout << cleaner_outputs << " of 60 outputs are more than twice as clean as the source\n";
+  EXPECT_GE(cleaner_outputs, 3) << "the case this test is for did not occur";
+}
+
+TEST(SpecifyHistogramTest, ZerosStayZeroAndOtherValuesTakeSourceQuantiles) {
+  // Source: 30% zeros, then 1..70. Output with 80% zeros: the zeros stay 0 (the old rule gave
+  // them the quantile at rank 40%, value 10), the positives keep their rank quantile.
+  std::vector<float> source(100, 0.0f);
+  for (int i = 30; i < 100; ++i) source[i] = static_cast<float>(i - 29);
+  std::vector<float> values(50, 0.0f);
+  for (int i = 40; i < 50; ++i) values[i] = 0.5f + i;
+  SpecifyHistogram(source, &values);
+  for (int i = 0; i < 40; ++i) EXPECT_EQ(values[i], 0.0f) << i;
+  for (int i = 40; i < 50; ++i) {
+    EXPECT_GT(values[i], 0.0f) << i;
+    EXPECT_TRUE(std::binary_search(source.begin(), source.end(), values[i])) << values[i];
+    if (i > 40) {
+      EXPECT_GT(values[i], values[i - 1]);
+    }
+  }
+  EXPECT_EQ(values[49], 70.0f);
+  // Output with 10% zeros: the faintest values become 0 up to the source's 30%.
+  std::vector<float> fewer(100);
+  for (int i = 0; i < 100; ++i) fewer[i] = i < 10 ? 0.0f : static_cast<float>(i);
+  SpecifyHistogram(source, &fewer);
+  EXPECT_EQ(std::count(fewer.begin(), fewer.end(), 0.0f), 30);
+  EXPECT_EQ(fewer, source);
 }
 
 TEST(QuiltingTest, SameSeedSameBitsOtherSeedOtherOutput) {
@@ -178,18 +257,90 @@ TEST(QuiltingTest, SameSeedSameBitsOtherSeedOtherOutput) {
 }
 
 TEST(QuiltingTest, OutputValuesComeFromTheSource) {
-  // Quilting copies pixels (no blending), so every output value occurs in the source.
+  // Quilting copies pixels (no blending) and the remap picks source values, so with and
+  // without it every output value occurs in the source.
   const Image source = DustTexture(64, 64, 30, 1);
   std::vector<float> values = source.data();
   std::sort(values.begin(), values.end());
-  QuiltingOptions options;
-  options.patch_px = 16;
-  options.overlap_px = 4;
-  Image out;
-  ASSERT_TRUE(QuiltTexture(source, 70, 33, options, &out).ok());
-  EXPECT_EQ(out.width(), 70);
-  EXPECT_EQ(out.height(), 33);
-  for (float v : out.data()) EXPECT_TRUE(std::binary_search(values.begin(), values.end(), v));
+  for (const bool match_histogram : {false, true}) {
+    QuiltingOptions options;
+    options.patch_px = 16;
+    options.overlap_px = 4;
+    options.match_histogram = match_histogram;
+    Image out;
+    ASSERT_TRUE(QuiltTexture(source, 70, 33, options, &out).ok());
+    EXPECT_EQ(out.width(), 70);
+    EXPECT_EQ(out.height(), 33);
+    for (float v : out.data()) EXPECT_TRUE(std::binary_search(values.begin(), values.end(), v));
+  }
+}
+
+// Not run by default: the measurements behind the tolerances above and the figures of
+// docs/models/contamination_synthesis.md, Sec. 4. Run with
+//   THINSLAB_SOURCE_DIR=$PWD build/synth/synth_quilting_test --gtest_also_run_disabled_tests
+//     --gtest_filter='*MeasureStatistics*'
+TEST(QuiltingTest, DISABLED_MeasureStatistics) {
+  auto report = [](const std::string& name, const std::vector<QuiltStatistics>& runs) {
+    QuiltStatistics mean, worst;
+    worst.mean_ratio = 1;
+    for (const auto& r : runs) {
+      mean.ks += r.ks / runs.size();
+      mean.mean_ratio += r.mean_ratio / runs.size();
+      mean.autocorrelation_deviation += r.autocorrelation_deviation / runs.size();
+      mean.seam_ratio += r.seam_ratio / runs.size();
+      mean.source_zero_fraction += r.source_zero_fraction / runs.size();
+      mean.output_zero_fraction += r.output_zero_fraction / runs.size();
+      worst.ks = std::max(worst.ks, r.ks);
+      if (std::abs(r.mean_ratio - 1) > std::abs(worst.mean_ratio - 1)) worst.mean_ratio = r.mean_ratio;
+      worst.autocorrelation_deviation = std::max(worst.autocorrelation_deviation, r.autocorrelation_deviation);
+      worst.seam_ratio = std::max(worst.seam_ratio, r.seam_ratio);
+      worst.output_zero_fraction = std::max(worst.output_zero_fraction, r.output_zero_fraction);
+    }
+    // Runs beyond the tolerances the tests imply (KS 0.05, mean tau 2%,
+    // autocorrelation 0.1, seam ratio 1.2).
+    int over[4] = {0, 0, 0, 0};
+    for (const auto& r : runs) {
+      over[0] += r.ks > 0.05;
+      over[1] += std::abs(r.mean_ratio - 1) > 0.02;
+      over[2] += r.autocorrelation_deviation > 0.1;
+      over[3] += r.seam_ratio > 1.2;
+    }
+    std::cout << name << " (" << runs.size() << " runs)\n  mean:  " << ToString(mean) << "\n  worst: KS " << worst.ks
+              << ", mean ratio " << worst.mean_ratio << ", autocorrelation deviation "
+              << worst.autocorrelation_deviation << ", seam ratio " << worst.seam_ratio << ", output zeros "
+              << worst.output_zero_fraction << "\n  runs over KS 0.05: " << over[0] << ", over 2% mean: " << over[1]
+              << ", over autocorrelation 0.1: " << over[2] << ", over seam 1.2: " << over[3] << "\n";
+  };
+  for (const bool match_histogram : {false, true}) {
+    std::vector<QuiltStatistics> runs;
+    for (uint64_t source_seed = 1; source_seed <= 5; ++source_seed) {
+      const Image source = DustTexture(128, 128, 110, source_seed);
+      for (uint64_t seed = 0; seed < 8; ++seed) {
+        QuiltingOptions options;
+        options.seed = 10 + source_seed + 100 * seed;
+        runs.push_back(QuiltAndMeasure(source, options, match_histogram));
+      }
+    }
+    report(std::string("synthetic dust, 5 sources x 8 seeds, match_histogram=") + (match_histogram ? "on" : "off"),
+           runs);
+  }
+  const char* source_dir = std::getenv("THINSLAB_SOURCE_DIR");
+  if (source_dir == nullptr) return;
+  Prototype dust;
+  const Status s = ReadPrototype(std::string(source_dir) + "/data/prototypes/dust_specks_a", &dust);
+  ASSERT_TRUE(s.ok()) << s.message();
+  for (const bool match_histogram : {false, true}) {
+    std::vector<QuiltStatistics> runs;
+    for (uint64_t seed = 1; seed <= 8; ++seed) {
+      QuiltingOptions options;
+      options.seed = seed;
+      runs.push_back(QuiltAndMeasure(dust.tau, options, match_histogram));
+    }
+    report(std::string("bundled dust_specks_a, 8 seeds, match_histogram=") + (match_histogram ? "on" : "off"), runs);
+  }
+  Image naive, naive_ids;
+  NaiveTiling(dust.tau, 256, 256, QuiltingOptions().patch_px, 2, &naive, &naive_ids);
+  std::cout << "naive tiling of dust_specks_a: seam ratio " << SeamRatio(naive, naive_ids).ratio << "\n";
 }
 
 TEST(QuiltingTest, BadInputsGiveClearErrors) {
