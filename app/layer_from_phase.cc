@@ -33,10 +33,13 @@ Status ReadPhaseLayerChoice(const std::string& phase_dir, PhaseLayerChoice* choi
   if (result == "no_measurable_scattering") {
     choice->rung = 0;
   } else if (result == "success") {
-    if (!summary.contains("g") || !summary["g"].is_number()) return Status::Error(path + ": g: missing or not a number");
+    if (!summary.contains("g") || !summary["g"].is_number())
+      return Status::Error(path + ": g: missing or not a number");
     choice->g = summary["g"].get<double>();
-    if (!(choice->g > -1 && choice->g < 1)) return Status::Error(path + ": g: " + summary["g"].dump() + " is not in (-1, 1)");
-    if (summary.contains("sigma_g") && summary["sigma_g"].is_number()) choice->sigma_g = summary["sigma_g"].get<double>();
+    if (!(choice->g > -1 && choice->g < 1))
+      return Status::Error(path + ": g: " + summary["g"].dump() + " is not in (-1, 1)");
+    if (summary.contains("sigma_g") && summary["sigma_g"].is_number())
+      choice->sigma_g = summary["sigma_g"].get<double>();
   } else {
     return Status::Error(path + ": result is \"" + result + "\": the lobe fit gave no usable g (" +
                          (summary.contains("message") ? summary["message"].dump() : std::string("no message")) + ")");

@@ -40,8 +40,9 @@ BoardRectifier::BoardRectifier(const CameraInfo& camera, const BoardGrid& grid)
   for (int j = 0; j < h; ++j) {
     for (int i = 0; i < w; ++i) {
       const double side_px = grid.average_footprint ? FootprintSidePx(camera, grid, i, j) : 0.0;
-      const int s = std::min(kMaxSubsamplesPerSide,
-                             std::max(grid.supersample, static_cast<int>(std::ceil(kSubsamplesPerCameraPixel * side_px))));
+      const int s =
+          std::min(kMaxSubsamplesPerSide,
+                   std::max(grid.supersample, static_cast<int>(std::ceil(kSubsamplesPerCameraPixel * side_px))));
       hits.clear();
       for (int a = 0; a < s; ++a) {
         for (int b = 0; b < s; ++b) {
@@ -49,8 +50,8 @@ BoardRectifier::BoardRectifier(const CameraInfo& camera, const BoardGrid& grid)
                                             grid.grid_min_m.y() + (j + (a + 0.5) / s) * grid.pixel_pitch_m,
                                             grid.plane_z_m);
           Eigen::Vector2d uv;
-          if (!ProjectSamplePoint(camera, x_in_sample, &uv) || uv.x() < 0 || uv.y() < 0 ||
-              uv.x() >= camera.width_px || uv.y() >= camera.height_px) {
+          if (!ProjectSamplePoint(camera, x_in_sample, &uv) || uv.x() < 0 || uv.y() < 0 || uv.x() >= camera.width_px ||
+              uv.y() >= camera.height_px) {
             outside_.at(i, j) = 1;
             continue;
           }

@@ -15,8 +15,8 @@ namespace thinslab {
 
 bool LaserLobePreparationOptions::Check(std::string* error) const {
   if (supersample < 1 || supersample > 8) {
-    *error = "LaserLobePreparationOptions::supersample = " + std::to_string(supersample) +
-             ". Violated constraint: 1..8";
+    *error =
+        "LaserLobePreparationOptions::supersample = " + std::to_string(supersample) + ". Violated constraint: 1..8";
     return false;
   }
   return true;
@@ -25,8 +25,8 @@ bool LaserLobePreparationOptions::Check(std::string* error) const {
 namespace {
 
 Status MergeAndRectify(const std::string& session_dir, const Session& session, const CameraInfo& camera,
-                       const CameraResponse* response, const std::vector<const FrameRecord*>& frames, double read_noise_dn,
-                       const BoardRectifier& rectifier, BoardHdr* out) {
+                       const CameraResponse* response, const std::vector<const FrameRecord*>& frames,
+                       double read_noise_dn, const BoardRectifier& rectifier, BoardHdr* out) {
   if (frames.empty()) return Status::Ok();
   std::vector<Image> images(frames.size());
   std::vector<HdrFrame> hdr_frames;
@@ -124,12 +124,14 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
   images->board_distance_m = session.rig.board.distance_m;
   images->beam_radius_m = session.rig.laser.present ? session.rig.laser.beam_radius_m : 0.0;
   images->read_noise_dn = read_noise;
-  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response, lobe, read_noise, rectifier, &images->lobe));
+  THINSLAB_RETURN_IF_ERROR(
+      MergeAndRectify(session_dir, session, camera, response, lobe, read_noise, rectifier, &images->lobe));
   THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response,
                                            of_camera(session.UsableFrames("laser", "clean")), read_noise, rectifier,
                                            &images->clean));
-  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response, of_camera(session.UsableFrames("flat")),
-                                           read_noise, rectifier, &images->flat));
+  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response,
+                                           of_camera(session.UsableFrames("flat")), read_noise, rectifier,
+                                           &images->flat));
   return Status::Ok();
 }
 

@@ -52,7 +52,8 @@ Status LoadCameraResponse(const std::string& session_dir, const std::string& pat
   }
   THINSLAB_RETURN_IF_ERROR(ReadResponse(path, response));
   if (!response->camera_id.empty() && response->camera_id != camera.id) {
-    return Status::Error(path + ": camera: '" + response->camera_id + "', but the session's camera is '" + camera.id + "'");
+    return Status::Error(path + ": camera: '" + response->camera_id + "', but the session's camera is '" + camera.id +
+                         "'");
   }
   if (response->bit_depth != 0 && response->bit_depth != camera.bit_depth) {
     return Status::Error(path + ": bit_depth: " + std::to_string(response->bit_depth) + ", but camera '" + camera.id +
@@ -103,8 +104,8 @@ Status LoadSessionCalibration(const std::string& session_dir, const SessionCalib
   }
   const auto id = flat.attributes().find("camera");
   if (id != flat.attributes().end() && id->second != camera->id) {
-    return Status::Error(flat_path + ": camera attribute '" + id->second + "', the session's camera is '" +
-                         camera->id + "'");
+    return Status::Error(flat_path + ": camera attribute '" + id->second + "', the session's camera is '" + camera->id +
+                         "'");
   }
   calibration->flat_field = Image(flat.width(), flat.height());
   for (int y = 0; y < flat.height(); ++y) {

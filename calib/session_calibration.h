@@ -2,9 +2,9 @@
 // The calibration the fit stage applies to a capture (docs/format.md, "Calibration read by the
 // fits"): SESSION/calib/rig.json replaces the manifest camera's intrinsics, distortion and pose
 // and supplies the measured CRT dot geometry; SESSION/calib/response.json linearises every
-// frame; SESSION/calib/flat_field.exr is the projector flat field of shadow-map sessions. The preparations (calib/shadow_map_preparation.h, calib/laser_lobe_preparation.h,
-// fit/dmf_processing.h) load it, so every fit of a calibrated session uses the same numbers the
-// calibration commands wrote, and say which files they used.
+// frame; SESSION/calib/flat_field.exr is the projector flat field of shadow-map sessions. The preparations
+// (calib/shadow_map_preparation.h, calib/laser_lobe_preparation.h, fit/dmf_processing.h) load it, so every fit of a
+// calibrated session uses the same numbers the calibration commands wrote, and say which files they used.
 #pragma once
 
 #include <string>
@@ -30,11 +30,11 @@ struct SessionCalibrationOptions {
 };
 
 struct SessionCalibration {
-  std::string rig_file;       // rig.json used ("" = none).
-  bool intrinsics = false;    // Its camera section replaced the manifest's intrinsics.
-  bool pose = false;          // Its pose section replaced the manifest's cam_from_sample.
+  std::string rig_file;           // rig.json used ("" = none).
+  bool intrinsics = false;        // Its camera section replaced the manifest's intrinsics.
+  bool pose = false;              // Its pose section replaced the manifest's cam_from_sample.
   RigMonitorCalibration monitor;  // Its monitor section (present = false if none).
-  std::string response_file;  // response.json used ("" = linear camera).
+  std::string response_file;      // response.json used ("" = linear camera).
   CameraResponse response;
   std::string flat_field_file;  // flat_field.exr loaded ("" = none).
   Image flat_field;             // Its "flat" channel, 0 where its "valid" is 0; camera grid.

@@ -142,8 +142,7 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   AveragedFrames shadow, reference;
   THINSLAB_RETURN_IF_ERROR(AverageFrames(session_dir, session, camera, response, shadow_frames, dark, &shadow));
   if (!reference_frames.empty()) {
-    THINSLAB_RETURN_IF_ERROR(
-        AverageFrames(session_dir, session, camera, response, reference_frames, dark, &reference));
+    THINSLAB_RETURN_IF_ERROR(AverageFrames(session_dir, session, camera, response, reference_frames, dark, &reference));
   }
 
   // Rectification onto the board plane over the manifest's region grid.
@@ -187,7 +186,8 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   if (!maps->calibration.flat_field.empty()) {
     // A map pixel touching an invalid flat-field pixel gets no flat (0).
     Image invalid(camera.width_px, camera.height_px);
-    for (size_t i = 0; i < invalid.data().size(); ++i) invalid.data()[i] = maps->calibration.flat_field.data()[i] > 0 ? 0 : 1;
+    for (size_t i = 0; i < invalid.data().size(); ++i)
+      invalid.data()[i] = maps->calibration.flat_field.data()[i] > 0 ? 0 : 1;
     maps->flat = rectifier.Rectify(maps->calibration.flat_field);
     const Image flat_invalid = rectifier.RectifyAny(invalid);
     for (size_t i = 0; i < maps->flat.data().size(); ++i) {

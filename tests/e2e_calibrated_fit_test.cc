@@ -6,11 +6,10 @@
 // the calibration: with it the fit is back at its nominal accuracy, without it the damage shows.
 #include <gtest/gtest.h>
 
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 
 #include "app/stability_cases.h"
 #include "calib/rig_io.h"
@@ -19,8 +18,8 @@
 #include "core/session_io.h"
 #include "fit/dmf_processing.h"
 #include "sim/exposure_bracket_sim.h"
-#include "sim/synthesize_dot_scan_session.h"
 #include "sim/sim_chessboard.h"
+#include "sim/synthesize_dot_scan_session.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 
@@ -109,9 +108,10 @@ TEST(CalibratedFit, PoseFromTargetFrameReplacesWrongManifestPose) {
 
   const double nominal = RefinedRmsRelative(dir / "nominal"), bumped = RefinedRmsRelative(dir / "bumped"),
                calibrated = RefinedRmsRelative(dir / "calibrated"), ignored = RefinedRmsRelative(dir / "ignored");
-  std::printf("tau RMS relative error: true pose %.4f, manifest pose 3 px off %.4f, pose from calib/rig.json %.4f, "
-              "--calibration none %.4f\n",
-              nominal, bumped, calibrated, ignored);
+  std::printf(
+      "tau RMS relative error: true pose %.4f, manifest pose 3 px off %.4f, pose from calib/rig.json %.4f, "
+      "--calibration none %.4f\n",
+      nominal, bumped, calibrated, ignored);
   EXPECT_GT(bumped, 2 * nominal);               // The damage is visible ...
   EXPECT_NEAR(ignored, bumped, 0.02 * bumped);  // ... stays without the calibration ...
   EXPECT_LT(calibrated, 1.25 * nominal);        // ... and is repaired by it.
@@ -149,9 +149,10 @@ TEST(CalibratedFit, ResponseFromBracketLinearisesShadowMaps) {
   FitTau(session, dir / "assumed_linear", "--response linear");
   const double nominal = RefinedRmsRelative(dir / "nominal"), calibrated = RefinedRmsRelative(dir / "calibrated"),
                linear = RefinedRmsRelative(dir / "assumed_linear");
-  std::printf("tau RMS relative error: linear camera %.4f; gamma 1.8 camera with calib/response.json %.4f, "
-              "assumed linear %.4f\n",
-              nominal, calibrated, linear);
+  std::printf(
+      "tau RMS relative error: linear camera %.4f; gamma 1.8 camera with calib/response.json %.4f, "
+      "assumed linear %.4f\n",
+      nominal, calibrated, linear);
   EXPECT_GT(linear, 3 * nominal);
   EXPECT_LT(calibrated, 1.25 * nominal);
   const nlohmann::json summary = ReadJson(dir / "calibrated/summary.json");
@@ -244,14 +245,16 @@ TEST(CalibratedFit, FlatFieldStandsInForReferenceFrames) {
   FitTau(session, dir / "auto", "--reference auto");
   const double nominal = RefinedRmsRelative(dir / "nominal"), with_flat = RefinedRmsRelative(dir / "flat"),
                with_auto = RefinedRmsRelative(dir / "auto");
-  std::printf("tau RMS relative error: reference frames %.4f, flat field of another capture %.4f, "
-              "quadratic surface %.4f\n",
-              nominal, with_flat, with_auto);
+  std::printf(
+      "tau RMS relative error: reference frames %.4f, flat field of another capture %.4f, "
+      "quadratic surface %.4f\n",
+      nominal, with_flat, with_auto);
   EXPECT_LT(with_flat, 1.25 * nominal);
   EXPECT_EQ(ReadJson(dir / "flat/summary.json")["calibration"]["flat_field"].get<std::string>(),
             session + "/calib/flat_field.exr");
 
-  const RunResult none = RunThinslab("fit tau " + session + " --reference flat --calibration none --out " + (dir / "x"));
+  const RunResult none =
+      RunThinslab("fit tau " + session + " --reference flat --calibration none --out " + (dir / "x"));
   EXPECT_EQ(none.exit_code, 1);
   EXPECT_NE(none.output.find("no calib/flat_field.exr"), std::string::npos) << none.output;
 }
@@ -320,8 +323,8 @@ TEST(CalibrationCommands, CalibCameraFromImageFolder) {
     ASSERT_TRUE(RenderChessboardView(board, camera, 30 + v, &raw).ok());
     ASSERT_TRUE(WriteRawFrame(dir / ("views/view" + std::to_string(v) + ".png"), raw, 8).ok());
   }
-  const RunResult r = RunThinslab("calib camera --images " + (dir / "views") + " --board 9x6 --square-mm 25 --out " +
-                                  (dir / "out"));
+  const RunResult r =
+      RunThinslab("calib camera --images " + (dir / "views") + " --board 9x6 --square-mm 25 --out " + (dir / "out"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   RigCalibration rig;
   ASSERT_TRUE(ReadRigCalibration(dir / "out/rig.json", &rig).ok());

@@ -5,10 +5,9 @@
 // rung 2: the fitted g), and records where it came from.
 #include <gtest/gtest.h>
 
-#include <nlohmann/json.hpp>
-
 #include <cstdio>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 
 #include "app/commands.h"
 #include "app/stability_cases.h"
@@ -40,8 +39,12 @@ std::string ShadowSession(const TempDir& dir) {
 
 void WritePhaseDir(const std::string& dir, const std::string& result, double g, int ladder_rung) {
   std::filesystem::create_directories(dir);
-  nlohmann::json summary = {{"format", "thinslab-fit-summary"}, {"model", "gu2007_eq8"}, {"result", result},
-                            {"message", "test"}, {"g", g}, {"sigma_g", 0.01}};
+  nlohmann::json summary = {{"format", "thinslab-fit-summary"},
+                            {"model", "gu2007_eq8"},
+                            {"result", result},
+                            {"message", "test"},
+                            {"g", g},
+                            {"sigma_g", 0.01}};
   ASSERT_TRUE(WriteFileAtomically(dir + "/summary.json", summary.dump()).ok());
   if (ladder_rung >= 0) {
     ASSERT_TRUE(WriteFileAtomically(dir + "/ladder.json", nlohmann::json({{"chosen_rung", ladder_rung}}).dump()).ok());
@@ -63,9 +66,11 @@ TEST(LayerChain, FitTauTakesGFromTheLaserLobeFit) {
   ASSERT_EQ(ladder.chosen_rung, 2);
 
   const std::string shadow = ShadowSession(dir);
-  const RunResult chained = RunThinslab("fit tau " + shadow + " --out " + (dir / "chained") + " --phase " + (dir / "phase"));
+  const RunResult chained =
+      RunThinslab("fit tau " + shadow + " --out " + (dir / "chained") + " --phase " + (dir / "phase"));
   ASSERT_EQ(chained.exit_code, 0) << chained.output;
-  const RunResult given = RunThinslab("fit tau " + shadow + " --out " + (dir / "given") + " --g " + std::to_string(kLayerG));
+  const RunResult given =
+      RunThinslab("fit tau " + shadow + " --out " + (dir / "given") + " --g " + std::to_string(kLayerG));
   ASSERT_EQ(given.exit_code, 0) << given.output;
   const RunResult wrong = RunThinslab("fit tau " + shadow + " --out " + (dir / "wrong") + " --g 0.9");
   ASSERT_EQ(wrong.exit_code, 0) << wrong.output;
@@ -77,9 +82,10 @@ TEST(LayerChain, FitTauTakesGFromTheLaserLobeFit) {
   auto rms = [&](const std::string& name) {
     return ReadJson(dir / (name + "/comparison.json"))["refined"]["rms_relative"].get<double>();
   };
-  std::printf("lobe fit g = %.4f +- %.4f (true %.1f); tau RMS relative: with --phase %.4f, true g given %.4f, "
-              "g 0.9 given %.4f\n",
-              phase.g, phase.sigma_g, kLayerG, rms("chained"), rms("given"), rms("wrong"));
+  std::printf(
+      "lobe fit g = %.4f +- %.4f (true %.1f); tau RMS relative: with --phase %.4f, true g given %.4f, "
+      "g 0.9 given %.4f\n",
+      phase.g, phase.sigma_g, kLayerG, rms("chained"), rms("given"), rms("wrong"));
   EXPECT_LT(rms("chained"), 1.1 * rms("given"));
   EXPECT_GT(rms("wrong"), rms("chained"));
 }
