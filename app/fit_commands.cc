@@ -44,7 +44,9 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
   j["final_max_update_tau"] = s.final_max_update_tau;
   j["rms_normalized_residual"] = s.rms_normalized_residual;
   j["mean_scattered_fraction"] = s.mean_scattered_fraction;
-  j["calibration"] = CalibrationSummaryJson(data.calibration);
+  SessionCalibration applied = data.calibration;
+  if (fit.reference != "flat") applied.flat_field_file.clear();  // Loaded, but only that reference uses it.
+  j["calibration"] = CalibrationSummaryJson(applied);
   j["layer"] = {{"albedo", fit.layer_albedo}, {"g", fit.layer_g}, {"refine_scattering", fit.refine_scattering},
                 {"source", phase != nullptr ? phase->summary_path : std::string("options")}};
   if (phase != nullptr) j["layer"]["phase_ladder_rung"] = phase->rung;
