@@ -252,6 +252,7 @@ TEST(CalibratedFit, FlatFieldStandsInForReferenceFrames) {
   EXPECT_LT(with_flat, 1.25 * nominal);
   EXPECT_EQ(ReadJson(dir / "flat/summary.json")["calibration"]["flat_field"].get<std::string>(),
             session + "/calib/flat_field.exr");
+  EXPECT_TRUE(ReadJson(dir / "auto/summary.json")["calibration"]["flat_field"].is_null());
 
   const RunResult none =
       RunThinslab("fit tau " + session + " --reference flat --calibration none --out " + (dir / "x"));
