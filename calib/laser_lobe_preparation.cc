@@ -45,7 +45,7 @@ Status MergeAndRectify(const std::string& session_dir, const Session& session, c
   HdrImage hdr;
   THINSLAB_RETURN_IF_ERROR(MergeExposureBracket(hdr_frames, merge_options, &hdr));
   out->radiance = rectifier.Rectify(hdr.radiance);
-  out->variance = rectifier.Rectify(hdr.variance);
+  out->variance = rectifier.RectifyVariance(hdr.variance);  // Of the board pixel's mean.
   out->all_saturated = rectifier.RectifyAny(hdr.all_saturated);
   out->num_frames = static_cast<int>(frames.size());
   out->num_exposures = static_cast<int>(exposures.size());

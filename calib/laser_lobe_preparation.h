@@ -23,7 +23,7 @@ struct LaserLobePreparationOptions {
 
 struct BoardHdr {
   Image radiance;       // DN per microsecond, on the board grid.
-  Image variance;
+  Image variance;       // Of `radiance`: (DN per microsecond)^2, camera pixels independent.
   Image all_saturated;  // 1 where every exposure saturated.
   int num_frames = 0;
   int num_exposures = 0;  // Distinct exposure times.
