@@ -15,6 +15,7 @@
 #include "core/file.h"
 #include "core/session_io.h"
 #include "tests/testing/temp_dir.h"
+#include "tests/testing/tiny_session.h"
 
 namespace thinslab {
 namespace {
@@ -23,17 +24,7 @@ namespace {
 // `fail_from` on (a camera unplugged mid-session).
 class CountingFakeCamera : public Camera {
  public:
-  explicit CountingFakeCamera(int fail_from = -1) : fail_from_(fail_from) {
-    info_.id = "cam0";
-    info_.model = "fake";
-    info_.width_px = 8;
-    info_.height_px = 6;
-    info_.fx_px = info_.fy_px = 10;
-    info_.cx_px = 3.5;
-    info_.cy_px = 2.5;
-    info_.bit_depth = 12;
-    info_.saturation_dn = 4095;
-  }
+  explicit CountingFakeCamera(int fail_from = -1) : info_(TinyCamera("fake")), fail_from_(fail_from) {}
   const CameraInfo& info() const override { return info_; }
   Status SetExposure(double requested_us, double* applied_us) override {
     exposure_us_ = std::round(requested_us);
@@ -68,13 +59,8 @@ class NullProjector : public Projector {
 };
 
 Session Header(const CameraInfo& camera) {
-  Session header;
+  Session header = TinySessionHeader("shadow_map", camera);
   header.name = "journal";
-  header.kind = "shadow_map";
-  header.rig.cameras = {camera};
-  header.rig.sample.region_min_m = Eigen::Vector2d(-1e-3, -1e-3);
-  header.rig.sample.region_max_m = Eigen::Vector2d(1e-3, 1e-3);
-  header.rig.sample.pixel_pitch_m = 1e-4;
   return header;
 }
 

@@ -5,6 +5,7 @@
 
 #include "core/session_io.h"
 #include "tests/testing/temp_dir.h"
+#include "tests/testing/tiny_session.h"
 
 namespace thinslab {
 namespace {
@@ -12,17 +13,8 @@ namespace {
 // A camera that fails on chosen capture attempts (device faults mid-session).
 class FlakyCamera : public Camera {
  public:
-  explicit FlakyCamera(std::vector<int> failing_attempts) : failing_(std::move(failing_attempts)) {
-    info_.id = "cam0";
-    info_.model = "test";
-    info_.width_px = 8;
-    info_.height_px = 6;
-    info_.fx_px = info_.fy_px = 10;
-    info_.cx_px = 3.5;
-    info_.cy_px = 2.5;
-    info_.bit_depth = 12;
-    info_.saturation_dn = 4095;
-  }
+  explicit FlakyCamera(std::vector<int> failing_attempts)
+      : info_(TinyCamera()), failing_(std::move(failing_attempts)) {}
   const CameraInfo& info() const override { return info_; }
   Status SetExposure(double requested_us, double* applied_us) override {
     *applied_us = std::round(requested_us);
@@ -51,13 +43,8 @@ class NullProjector : public Projector {
 };
 
 Session Header(const CameraInfo& camera) {
-  Session header;
+  Session header = TinySessionHeader("shadow_map", camera);
   header.name = "test";
-  header.kind = "shadow_map";
-  header.rig.cameras = {camera};
-  header.rig.sample.region_min_m = Eigen::Vector2d(-1e-3, -1e-3);
-  header.rig.sample.region_max_m = Eigen::Vector2d(1e-3, 1e-3);
-  header.rig.sample.pixel_pitch_m = 1e-4;
   return header;
 }
 
@@ -73,6 +60,7 @@ TEST(ShadowMapSession, FailedCaptureIsRecordedAndRetried) {
   const Status status =
       RunShadowMapSession(options, &camera, &projector, [](const std::string&) { return Status::Ok(); }, &writer);
   ASSERT_TRUE(status.ok()) << status.message();
+  ASSERT_TRUE(writer.Save().ok());
   Session session;
   ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
   ASSERT_EQ(session.frames.size(), 6u);  // 1 dark + failed + retried + 1 reference + 2 shadow.
@@ -94,6 +82,7 @@ TEST(ShadowMapSession, DeadCameraStopsWithClearErrorAndKeepsAValidSession) {
       RunShadowMapSession(options, &camera, &projector, [](const std::string&) { return Status::Ok(); }, &writer);
   ASSERT_FALSE(status.ok());
   EXPECT_NE(status.message().find("camera 'cam0'"), std::string::npos);
+  ASSERT_TRUE(writer.Save().ok());
   Session session;
   ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
   EXPECT_EQ(session.frames.size(), static_cast<size_t>(options.max_retries + 1));
@@ -111,9 +100,11 @@ TEST(SessionWriter, ReopeningResumesAndKeepsFrames) {
   record.sample_state = "contaminated";
   record.exposure_time_us = 100;
   ASSERT_TRUE(writer.AddFrame(record, Image(8, 6, 10.0f)).ok());
+  ASSERT_TRUE(writer.Save().ok());
   SessionWriter resumed;
   ASSERT_TRUE(resumed.Open(dir / "s", Header(camera.info())).ok());
   ASSERT_TRUE(resumed.AddFrame(record, Image(8, 6, 11.0f)).ok());
+  ASSERT_TRUE(resumed.Save().ok());
   Session session;
   ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
   ASSERT_EQ(session.frames.size(), 2u);

@@ -299,7 +299,10 @@ int Finish(const std::string& kind, const CommonOptions& common, const std::stri
   // frames are the ones an uninterrupted run would have taken (per-capture seeded noise).
   if (sim_camera != nullptr && common.resume && FileExists(JoinPath(common.out, kSessionManifestName))) {
     Session previous;
-    if (ReadSession(common.out, &previous).ok()) sim_camera->set_frame_counter(previous.acquisition.camera_captures);
+    // The counter of the last frame journaled: the manifest may be older (docs/acquisition.md).
+    if (ReadSessionWithJournal(common.out, &previous).ok()) {
+      sim_camera->set_frame_counter(previous.acquisition.camera_captures);
+    }
   }
   AcquisitionRunOptions run;
   run.session_dir = common.out;

@@ -320,11 +320,11 @@ class ManifestParser {
   }
 
   Status Parse(const Json& root, Session* session) const;
+  Status ParseFrame(const Json& j, const std::string& path, FrameRecord* frame) const;
 
  private:
   Status ParseCamera(const Json& j, const std::string& path, CameraInfo* camera) const;
   Status ParseRig(const Json& j, const std::string& path, RigInfo* rig) const;
-  Status ParseFrame(const Json& j, const std::string& path, FrameRecord* frame) const;
   Status ParseAcquisition(const Json& j, const std::string& path, AcquisitionInfo* acquisition) const;
 
   std::string file_;
@@ -580,6 +580,27 @@ OrderedJson RigidToJson(const Rigid3d& r) {
   return j;
 }
 
+OrderedJson FrameToJson(const FrameRecord& f) {
+  OrderedJson fj = OrderedJson::object();
+  fj["index"] = f.index;
+  fj["camera"] = f.camera_id;
+  fj["kind"] = f.kind;
+  fj["sample_state"] = f.sample_state;
+  fj["file"] = f.file;
+  fj["exposure_time_us"] = f.exposure_time_us;
+  fj["gain_db"] = f.gain_db;
+  OrderedJson light = OrderedJson::object();
+  light["projector_pattern"] = f.light.projector_pattern;
+  light["laser_on"] = f.light.laser_on;
+  if (f.light.dot_px.has_value()) light["dot_px"] = Array2(*f.light.dot_px);
+  light["dot_radiance"] = f.light.dot_radiance;
+  fj["light"] = std::move(light);
+  fj["timestamp_utc"] = f.timestamp_utc;
+  fj["status"] = FrameStatusName(f.status);
+  fj["error"] = f.error;
+  return fj;
+}
+
 OrderedJson SessionToJson(const Session& session) {
   OrderedJson root = OrderedJson::object();
   root["format"] = kFormatName;
@@ -660,26 +681,7 @@ OrderedJson SessionToJson(const Session& session) {
   root["rig"] = std::move(rig_json);
 
   OrderedJson frames = OrderedJson::array();
-  for (const FrameRecord& f : session.frames) {
-    OrderedJson fj = OrderedJson::object();
-    fj["index"] = f.index;
-    fj["camera"] = f.camera_id;
-    fj["kind"] = f.kind;
-    fj["sample_state"] = f.sample_state;
-    fj["file"] = f.file;
-    fj["exposure_time_us"] = f.exposure_time_us;
-    fj["gain_db"] = f.gain_db;
-    OrderedJson light = OrderedJson::object();
-    light["projector_pattern"] = f.light.projector_pattern;
-    light["laser_on"] = f.light.laser_on;
-    if (f.light.dot_px.has_value()) light["dot_px"] = Array2(*f.light.dot_px);
-    light["dot_radiance"] = f.light.dot_radiance;
-    fj["light"] = std::move(light);
-    fj["timestamp_utc"] = f.timestamp_utc;
-    fj["status"] = FrameStatusName(f.status);
-    fj["error"] = f.error;
-    frames.push_back(std::move(fj));
-  }
+  for (const FrameRecord& f : session.frames) frames.push_back(FrameToJson(f));
   root["frames"] = std::move(frames);
   if (session.acquisition.present) {
     const AcquisitionInfo& acq = session.acquisition;
@@ -771,6 +773,36 @@ Status WriteSession(const std::string& session_dir, const Session& session) {
     THINSLAB_RETURN_IF_ERROR(CreateDirectories(session_dir));
   }
   return WriteFileAtomically(file, text);
+}
+
+Status FrameRecordToJson(const FrameRecord& frame, std::string* json) {
+  try {
+    const OrderedJson j = FrameToJson(frame);
+    THINSLAB_RETURN_IF_ERROR(CheckFinite(j, "frames[" + std::to_string(frame.index) + "]", "frame record"));
+    *json = j.dump(-1, ' ', false, OrderedJson::error_handler_t::replace);
+  } catch (const std::exception& e) {
+    return Status::Error("frame record " + std::to_string(frame.index) + ": cannot encode JSON: " + e.what());
+  }
+  return Status::Ok();
+}
+
+Status ParseFrameRecordJson(const std::string& json, const std::string& where, FrameRecord* frame) {
+  Json j;
+  try {
+    j = Json::parse(json);
+  } catch (const Json::parse_error& e) {
+    return Status::Error(where + ": malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
+  } catch (const std::exception& e) {
+    return Status::Error(where + ": cannot parse JSON: " + e.what());
+  }
+  FrameRecord parsed;
+  try {
+    THINSLAB_RETURN_IF_ERROR(ManifestParser(where).ParseFrame(j, "frame", &parsed));
+  } catch (const std::exception& e) {
+    return Status::Error(where + ": unexpected error while reading: " + e.what());
+  }
+  *frame = std::move(parsed);
+  return Status::Ok();
 }
 
 Status ValidateSession(const Session& session, const std::string& session_dir) {

@@ -101,6 +101,7 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
   THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "dot_scan", rig, &writer));
   THINSLAB_RETURN_IF_ERROR(
       RunDotScanSession(session, monitor->camera(), monitor.get(), monitor->sample_changer(), &writer));
+  THINSLAB_RETURN_IF_ERROR(writer.Save());
   const double acquisition_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   // Ground truth.

@@ -21,6 +21,7 @@ Status SynthesizeShadowMapSession(const SyntheticShadowSessionOptions& options, 
   THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "shadow_map", rig->rig_info(), &writer));
   THINSLAB_RETURN_IF_ERROR(
       RunShadowMapSession(options.session, rig->camera(), rig->projector(), rig->sample_changer(), &writer));
+  THINSLAB_RETURN_IF_ERROR(writer.Save());
 
   const std::string truth_dir = JoinPath(session_dir, "ground_truth");
   THINSLAB_RETURN_IF_ERROR(CreateDirectories(truth_dir));

@@ -297,6 +297,7 @@ TEST(AravisFakeCamera, ShadowMapSessionRunsThroughTheGigEStackAndLogsStreamStati
   session_options.dark_frames = 1;
   const Status run = RunShadowMapSession(session_options, camera.get(), rig->projector(), rig->sample_changer(), &writer);
   ASSERT_TRUE(run.ok()) << run.message();
+  ASSERT_TRUE(writer.Save().ok());
   EXPECT_EQ(fake->source_errors(), 0u) << fake->last_source_error();
 
   Session session;
@@ -351,6 +352,7 @@ void CaptureFrames(Camera* camera, int count, int max_retries, const std::string
     const Status status = CaptureWithRetries(camera, templ, max_retries, &writer);
     ASSERT_TRUE(status.ok()) << status.message();
   }
+  ASSERT_TRUE(writer.Save().ok());
   ASSERT_TRUE(ReadSession(dir, session).ok());
 }
 
