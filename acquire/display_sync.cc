@@ -7,6 +7,7 @@
 #include <sstream>
 #include <vector>
 
+#include "acquire/capture_with_retries.h"
 #include "core/file.h"
 #include "core/session_io.h"
 
@@ -121,11 +122,8 @@ Status CaptureSynchronized(Camera* camera, const FrameRecord& templ, bool patter
       }
     }
     if (accept) {
-      FrameRecord record = templ;
-      record.exposure_time_us = frame.exposure_time_us;
-      record.timestamp_utc = frame.timestamp_utc;
-      record.status = failures == 0 ? FrameStatus::kOk : FrameStatus::kRetried;
-      THINSLAB_RETURN_IF_ERROR(writer->AddFrame(record, frame.raw_dn));
+      const FrameStatus frame_status = failures == 0 ? FrameStatus::kOk : FrameStatus::kRetried;
+      THINSLAB_RETURN_IF_ERROR(writer->AddFrame(CapturedRecord(templ, frame, frame_status), frame.raw_dn));
       reference->valid = true;
       reference->raw_dn = std::move(frame.raw_dn);
       reference->exposure_time_us = frame.exposure_time_us;

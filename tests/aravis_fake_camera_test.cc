@@ -233,10 +233,11 @@ TEST(AravisFakeCamera, FrameIdsIncreaseAcrossTheSixteenBitWrap) {
     CapturedFrame frame;
     const Status status = camera->Capture(&frame);
     ASSERT_TRUE(status.ok()) << "frame " << i << ": " << status.message();
+    ASSERT_TRUE(frame.frame_id.has_value()) << "frame " << i;
     if (i > 0) {
-      ASSERT_EQ(frame.frame_id, previous + 1) << "frame " << i;
+      ASSERT_EQ(*frame.frame_id, previous + 1) << "frame " << i;
     }
-    previous = frame.frame_id;
+    previous = *frame.frame_id;
   }
   EXPECT_GT(previous, 0xffffu);
 }
@@ -318,6 +319,16 @@ TEST(AravisFakeCamera, ShadowMapSessionRunsThroughTheGigEStackAndLogsStreamStati
     for (float& v : expected.data()) v = static_cast<float>(std::round(v) - black);
     EXPECT_TRUE(SameImage(loaded, expected)) << "frame " << i << " (" << f.kind << ")";
     means.push_back(Mean(loaded));
+  }
+  // The camera's frame ids and device timestamps reached the manifest: ids increase by one per
+  // frame (no buffer was lost), timestamps increase.
+  for (size_t i = 0; i < session.frames.size(); ++i) {
+    const FrameRecord& f = session.frames[i];
+    ASSERT_TRUE(f.camera_frame_id.has_value()) << "frames[" << i << "].camera_frame_id missing";
+    ASSERT_TRUE(f.camera_timestamp_ns.has_value()) << "frames[" << i << "].camera_timestamp_ns missing";
+    if (i == 0) continue;
+    EXPECT_EQ(*f.camera_frame_id, *session.frames[i - 1].camera_frame_id + 1) << "frame " << i;
+    EXPECT_GT(*f.camera_timestamp_ns, *session.frames[i - 1].camera_timestamp_ns) << "frame " << i;
   }
   // The light state reached the frames: dark < shadow < reference.
   EXPECT_LT(means[0], 0.2 * means[1]);

@@ -152,6 +152,10 @@ TEST_F(CliAcquireTest, KilledMidScanAndResumedEqualsAnUninterruptedRun) {
     EXPECT_EQ(fa.exposure_time_us, fb.exposure_time_us);
     EXPECT_EQ(fa.status, fb.status);
     EXPECT_EQ(fa.light.projector_pattern, fb.light.projector_pattern);
+    // The simulated camera counts captures, and the resumed one continues the count.
+    ASSERT_TRUE(fb.camera_frame_id.has_value());
+    EXPECT_EQ(fa.camera_frame_id, fb.camera_frame_id);
+    EXPECT_TRUE(fb.camera_timestamp_ns.has_value());
     Image ia, ib;
     ASSERT_TRUE(LoadFrame(reference, a, fa, &ia).ok());
     ASSERT_TRUE(LoadFrame(resumed, b, fb, &ib).ok());
