@@ -17,6 +17,7 @@
 
 #include "core/exr_io.h"
 #include "core/file.h"
+#include "tests/testing/frame_record_matchers.h"
 
 namespace thinslab {
 namespace {
@@ -233,25 +234,7 @@ void ExpectSessionsEqual(const Session& a, const Session& b) {
     SCOPED_TRACE("frame " + std::to_string(i));
     const FrameRecord& fa = a.frames[i];
     const FrameRecord& fb = b.frames[i];
-    EXPECT_EQ(fa.index, fb.index);
-    EXPECT_EQ(fa.camera_id, fb.camera_id);
-    EXPECT_EQ(fa.kind, fb.kind);
-    EXPECT_EQ(fa.sample_state, fb.sample_state);
-    EXPECT_EQ(fa.file, fb.file);
-    EXPECT_EQ(fa.exposure_time_us, fb.exposure_time_us);
-    EXPECT_EQ(fa.gain_db, fb.gain_db);
-    EXPECT_EQ(fa.light.projector_pattern, fb.light.projector_pattern);
-    EXPECT_EQ(fa.light.laser_on, fb.light.laser_on);
-    EXPECT_EQ(fa.light.dot_px.has_value(), fb.light.dot_px.has_value());
-    if (fa.light.dot_px && fb.light.dot_px) {
-      EXPECT_EQ(*fa.light.dot_px, *fb.light.dot_px);
-    }
-    EXPECT_EQ(fa.light.dot_radiance, fb.light.dot_radiance);
-    EXPECT_EQ(fa.timestamp_utc, fb.timestamp_utc);
-    EXPECT_EQ(fa.camera_frame_id, fb.camera_frame_id);
-    EXPECT_EQ(fa.camera_timestamp_ns, fb.camera_timestamp_ns);
-    EXPECT_EQ(fa.status, fb.status);
-    EXPECT_EQ(fa.error, fb.error);
+    ExpectSameFrame(fa, fb);
   }
 }
 

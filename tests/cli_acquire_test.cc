@@ -23,6 +23,7 @@
 #include "core/file.h"
 #include "acquire/session_writer.h"
 #include "core/session_io.h"
+#include "tests/testing/frame_record_matchers.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 
@@ -145,13 +146,7 @@ TEST_F(CliAcquireTest, KilledMidScanAndResumedEqualsAnUninterruptedRun) {
   for (size_t i = 0; i < a.frames.size(); ++i) {
     const FrameRecord& fa = a.frames[i];
     const FrameRecord& fb = b.frames[i];
-    EXPECT_EQ(fa.index, fb.index);
-    EXPECT_EQ(fa.kind, fb.kind);
-    EXPECT_EQ(fa.sample_state, fb.sample_state);
-    EXPECT_EQ(fa.file, fb.file);
-    EXPECT_EQ(fa.exposure_time_us, fb.exposure_time_us);
-    EXPECT_EQ(fa.status, fb.status);
-    EXPECT_EQ(fa.light.projector_pattern, fb.light.projector_pattern);
+    ExpectSamePlannedFrame(fa, fb);
     // The simulated camera counts captures, and the resumed one continues the count.
     ASSERT_TRUE(fb.camera_frame_id.has_value());
     EXPECT_EQ(fa.camera_frame_id, fb.camera_frame_id);
@@ -244,17 +239,7 @@ TEST_F(CliAcquireTest, DotScanKilledMidScanAndResumedHasTheFramesOfAnUninterrupt
     SCOPED_TRACE("frame " + std::to_string(i));
     const FrameRecord& fa = a.frames[i];
     const FrameRecord& fb = b.frames[i];
-    EXPECT_EQ(fa.index, fb.index);
-    EXPECT_EQ(fa.kind, fb.kind);
-    EXPECT_EQ(fa.sample_state, fb.sample_state);
-    EXPECT_EQ(fa.file, fb.file);
-    EXPECT_EQ(fa.exposure_time_us, fb.exposure_time_us);
-    EXPECT_EQ(fa.status, fb.status);
-    EXPECT_EQ(fa.light.projector_pattern, fb.light.projector_pattern);
-    ASSERT_EQ(fa.light.dot_px.has_value(), fb.light.dot_px.has_value());
-    if (fa.light.dot_px) {
-      EXPECT_EQ(*fa.light.dot_px, *fb.light.dot_px);
-    }
+    ExpectSamePlannedFrame(fa, fb);
     EXPECT_TRUE(fb.camera_frame_id.has_value());
     Image ia, ib;
     ASSERT_TRUE(LoadFrame(reference, a, fa, &ia).ok());
