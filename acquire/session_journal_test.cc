@@ -11,7 +11,7 @@
 #include <sstream>
 
 #include "acquire/progress.h"
-#include "acquire/shadow_map_session.h"
+#include "acquire/capture_with_retries.h"
 #include "core/file.h"
 #include "core/session_io.h"
 #include "tests/testing/temp_dir.h"
@@ -53,22 +53,32 @@ class CountingFakeCamera : public Camera {
   double exposure_us_ = 1000;
 };
 
-class NullProjector : public Projector {
- public:
-  Status ShowPattern(const std::string&) override { return Status::Ok(); }
-};
-
 Session Header(const CameraInfo& camera) {
   Session header = TinySessionHeader("shadow_map", camera);
   header.name = "journal";
   return header;
 }
 
-ShadowMapSessionOptions SmallShadowPlan() {
-  ShadowMapSessionOptions options;
-  options.frames_per_state = 3;
-  options.dark_frames = 2;
-  return options;
+// The frames of a small shadow-map session (2 dark, 3 reference, 3 shadow), one capture each
+// with retries: the bookkeeping of RunAcquisition under test, without display synchronisation
+// (acquire/shadow_map_session_test.cc tests that).
+Status CaptureShadowPlan(Camera* camera, SessionWriter* writer) {
+  const struct {
+    const char* kind;
+    const char* sample_state;
+    int count;
+  } steps[] = {{"dark", "clean", 2}, {"reference", "clean", 3}, {"shadow", "contaminated", 3}};
+  for (const auto& step : steps) {
+    for (int i = 0; i < step.count; ++i) {
+      FrameRecord templ;
+      templ.camera_id = camera->info().id;
+      templ.kind = step.kind;
+      templ.sample_state = step.sample_state;
+      templ.exposure_time_us = 1000;
+      THINSLAB_RETURN_IF_ERROR(CaptureWithRetries(camera, templ, /*max_retries=*/2, writer));
+    }
+  }
+  return Status::Ok();
 }
 
 Status RunShadow(const std::string& dir, bool resume, const std::string& plan, Camera* camera,
@@ -80,13 +90,7 @@ Status RunShadow(const std::string& dir, bool resume, const std::string& plan, C
   run.planned_frames = 8;
   run.camera_name = "fake";
   run.stop_check = std::move(stop);
-  NullProjector projector;
-  return RunAcquisition(run, Header(camera->info()), camera,
-                        [&](Camera* cam, SessionWriter* writer) {
-                          return RunShadowMapSession(SmallShadowPlan(), cam, &projector,
-                                                     [](const std::string&) { return Status::Ok(); }, writer);
-                        },
-                        result);
+  return RunAcquisition(run, Header(camera->info()), camera, CaptureShadowPlan, result);
 }
 
 TEST(AcquisitionRun, DeviceFailingMidSessionLeavesAManifestThatSaysWhatHappened) {
