@@ -35,6 +35,7 @@
 #include "sim/shadow_map_rig.h"
 #include "sim/sim_board_camera.h"
 #include "sim/sim_dot_monitor.h"
+#include "sim/sim_session.h"
 
 namespace thinslab {
 namespace {
@@ -353,6 +354,8 @@ void AddSyncOptions(OptionParser* parser, DisplaySyncOptions* sync) {
   parser->AddInt("settle-captures", &sync->settle_captures, "captures before an invisible change counts as settled");
   parser->AddInt("max-sync-captures", &sync->max_sync_captures, "captures before display-camera sync gives up");
   parser->AddDouble("min-change-dn", &sync->min_change_dn, "smallest 3x3-mean change that shows a new pattern [DN]");
+  parser->AddDouble("sync-read-noise-dn", &sync->read_noise_dn,
+                    "camera read noise assumed by the synchronisation (the simulated rigs use their sensor's if larger) [DN]");
 }
 
 int AcquireShadowMaps(int argc, char** argv, bool sim) {
@@ -392,6 +395,7 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
     std::unique_ptr<SimShadowMapRig> rig;
     if (status.ok()) status = SimShadowMapRig::Create(simulated.rig, tau, &rig);
     if (!status.ok()) return Fail(status);
+    session.sync = SyncForSensor(session.sync, simulated.rig.sensor);
     TeeProjector tee(rig->projector(), devices.window.get());
     TrackedProjector projector(devices.window ? static_cast<Projector*>(&tee) : rig->projector(),
                                devices.window ? devices.display_name : "projector (sim)", &tracker);
@@ -467,6 +471,7 @@ int AcquireLaser(int argc, char** argv, bool sim) {
     std::unique_ptr<SimLaserLobeRig> rig;
     status = SimLaserLobeRig::Create(simulated, &rig);
     if (!status.ok()) return Fail(status);
+    session.sync = SyncForSensor(session.sync, simulated.sensor);
     TeeProjector tee_projector(rig->flat_source(), devices.window.get());
     TeeLaser tee_laser(rig->laser(), devices.laser.get());
     TrackedProjector flat(devices.window ? static_cast<Projector*>(&tee_projector) : rig->flat_source(),
@@ -607,6 +612,7 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
       rig.sample.pixel_pitch_m = monitor.monitor_pixel_pitch_m;
     }
     change = AnySampleState();
+    sync = SyncForSensor(sync, monitor.sensor);
   } else {
     if (!devices.window) return Fail(Status::Error("thinslab acquire " + kind + ": a real camera needs --display <n>"));
     display = devices.window.get();

@@ -93,6 +93,7 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
   rig.sample.pixel_pitch_m = options.truth_pitch_m;
   rig.sample.glass_ior = so.regions.front().material.eta;
   DotScanSessionOptions session = options.session;
+  session.sync = SyncForSensor(session.sync, options.rig.sensor);
   session.monitor_width_px = options.rig.monitor_width_px;
   session.monitor_height_px = options.rig.monitor_height_px;
 
