@@ -3,6 +3,16 @@
 
 namespace thinslab {
 
+FrameRecord CapturedRecord(const FrameRecord& templ, const CapturedFrame& frame, FrameStatus status) {
+  FrameRecord record = templ;
+  record.exposure_time_us = frame.exposure_time_us;
+  record.timestamp_utc = frame.timestamp_utc;
+  record.camera_frame_id = frame.frame_id;
+  record.camera_timestamp_ns = frame.device_timestamp_ns;
+  record.status = status;
+  return record;
+}
+
 Status CaptureWithRetries(Camera* camera, const FrameRecord& templ, int max_retries, SessionWriter* writer) {
   bool already_on_disk = false;
   THINSLAB_RETURN_IF_ERROR(writer->ClaimStep(templ, &already_on_disk));
@@ -18,11 +28,8 @@ Status CaptureWithRetries(Camera* camera, const FrameRecord& templ, int max_retr
       THINSLAB_RETURN_IF_ERROR(writer->AddFailedFrame(templ, last_error));
       continue;
     }
-    FrameRecord record = templ;
-    record.exposure_time_us = frame.exposure_time_us;
-    record.timestamp_utc = frame.timestamp_utc;
-    record.status = attempt == 0 ? FrameStatus::kOk : FrameStatus::kRetried;
-    return writer->AddFrame(record, frame.raw_dn);
+    return writer->AddFrame(CapturedRecord(templ, frame, attempt == 0 ? FrameStatus::kOk : FrameStatus::kRetried),
+                            frame.raw_dn);
   }
   return Status::Error("camera '" + camera->info().id + "': capture failed " + std::to_string(max_retries + 1) +
                        " times: " + last_error);

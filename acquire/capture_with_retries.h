@@ -14,4 +14,8 @@ namespace thinslab {
 // plan that is already on disk is not captured again.
 Status CaptureWithRetries(Camera* camera, const FrameRecord& templ, int max_retries, SessionWriter* writer);
 
+// The manifest record of a successful capture of `templ`: what the camera reports (applied
+// exposure, UTC time, its frame id and device timestamp) and `status`.
+FrameRecord CapturedRecord(const FrameRecord& templ, const CapturedFrame& frame, FrameStatus status);
+
 }  // namespace thinslab

@@ -7,6 +7,7 @@
 #include <sstream>
 #include <vector>
 
+#include "acquire/capture_with_retries.h"
 #include "core/file.h"
 #include "core/session_io.h"
 
@@ -85,7 +86,7 @@ bool FramesDiffer(const Image& a_raw, double a_exposure_us, const Image& b_raw, 
   return false;
 }
 
-Status CaptureSynchronized(Camera* camera, const FrameRecord& templ, bool pattern_changed,
+Status CaptureSynchronized(Camera* camera, const FrameRecord& templ, LightChange change,
                            const DisplaySyncOptions& options, SyncReference* reference, SessionWriter* writer) {
   const CameraInfo& info = camera->info();
   int failures = 0, discarded = 0;
@@ -94,6 +95,8 @@ Status CaptureSynchronized(Camera* camera, const FrameRecord& templ, bool patter
   for (int capture = 0; capture < options.max_sync_captures + options.max_retries + 1; ++capture) {
     CapturedFrame frame;
     const Status status = camera->Capture(&frame);
+    // Transport statistics ride along with every manifest write (docs/format.md 2.3.1).
+    writer->SetCameraStatistics(info.id, camera->statistics());
     if (!status.ok()) {
       last_error = status.message();
       THINSLAB_RETURN_IF_ERROR(writer->AddFailedFrame(templ, last_error));
@@ -109,11 +112,15 @@ Status CaptureSynchronized(Camera* camera, const FrameRecord& templ, bool patter
     const bool exposure_ok = std::abs(frame.exposure_time_us - templ.exposure_time_us) <=
                              5e-3 * std::max(frame.exposure_time_us, templ.exposure_time_us);
     if (exposure_ok) {
-      if (!pattern_changed) {
+      const bool differs = reference->valid && FramesDiffer(frame.raw_dn, frame.exposure_time_us,
+                                                            reference->raw_dn, reference->exposure_time_us, info,
+                                                            options);
+      if (change == LightChange::kNone) {
         accept = true;
-      } else if (reference->valid && FramesDiffer(frame.raw_dn, frame.exposure_time_us, reference->raw_dn,
-                                                  reference->exposure_time_us, info, options)) {
+      } else if (change == LightChange::kChanged && differs) {
         accept = true;  // The displayed change is seen.
+      } else if (change == LightChange::kReshown && reference->valid && !differs) {
+        accept = true;  // The state of the frame on disk is seen again.
       } else if (previous.valid && capture + 1 >= options.settle_captures &&
                  !FramesDiffer(frame.raw_dn, frame.exposure_time_us, previous.raw_dn, previous.exposure_time_us,
                                info, options)) {
@@ -121,11 +128,8 @@ Status CaptureSynchronized(Camera* camera, const FrameRecord& templ, bool patter
       }
     }
     if (accept) {
-      FrameRecord record = templ;
-      record.exposure_time_us = frame.exposure_time_us;
-      record.timestamp_utc = frame.timestamp_utc;
-      record.status = failures == 0 ? FrameStatus::kOk : FrameStatus::kRetried;
-      THINSLAB_RETURN_IF_ERROR(writer->AddFrame(record, frame.raw_dn));
+      const FrameStatus frame_status = failures == 0 ? FrameStatus::kOk : FrameStatus::kRetried;
+      THINSLAB_RETURN_IF_ERROR(writer->AddFrame(CapturedRecord(templ, frame, frame_status), frame.raw_dn));
       reference->valid = true;
       reference->raw_dn = std::move(frame.raw_dn);
       reference->exposure_time_us = frame.exposure_time_us;
@@ -146,67 +150,97 @@ Status CaptureSynchronized(Camera* camera, const FrameRecord& templ, bool patter
                        " frames showed neither the change nor a settled image (DisplaySyncOptions::max_sync_captures)");
 }
 
+namespace {
+
+// The light state a frame is taken in; a change of any part is a change to synchronise on.
+struct LightKey {
+  std::string sample_state;
+  std::string pattern;
+  bool laser_on = false;
+  bool operator==(const LightKey& o) const {
+    return sample_state == o.sample_state && pattern == o.pattern && laser_on == o.laser_on;
+  }
+  bool operator!=(const LightKey& o) const { return !(*this == o); }
+};
+
+LightKey LightOf(const PlannedFrame& p) { return {p.sample_state, p.pattern, p.laser_on}; }
+
+}  // namespace
+
 Status RunSynchronizedPlan(const std::vector<PlannedFrame>& plan, const ExposureBracketOptions& bracket,
                            const DisplaySyncOptions& sync, Camera* camera, Projector* projector,
-                           const SampleChanger& change_sample, SessionWriter* writer) {
+                           const SampleChanger& change_sample, SessionWriter* writer, Laser* laser) {
   std::string error;
   if (!bracket.Check(&error) || !sync.Check(&error)) return Status::Error(error);
-  std::map<double, double> applied_for;  // requested -> applied exposure [us]
-  double current_requested = -1;
-  auto set_exposure = [&](double requested, double* applied) -> Status {
-    if (requested != current_requested) {
-      THINSLAB_RETURN_IF_ERROR(ApplyBracketExposure(camera, requested, bracket, applied));
-      applied_for[requested] = *applied;
-      current_requested = requested;
+  for (const PlannedFrame& p : plan) {
+    if (p.laser_on && laser == nullptr) {
+      return Status::Error("RunSynchronizedPlan: frame kind '" + p.kind + "' needs the laser on, and no laser was given");
+    }
+  }
+  ExposureBracketOptions unlocked = bracket;  // Frames the display does not light.
+  unlocked.refresh_period_s = 0;
+  std::map<std::pair<double, bool>, double> applied_for;  // (requested, refresh-locked) -> applied [us]
+  std::optional<std::pair<double, bool>> current_exposure;
+  auto set_exposure = [&](const PlannedFrame& p, double* applied) -> Status {
+    const std::pair<double, bool> key(p.requested_exposure_us, p.refresh_locked);
+    if (current_exposure != key) {
+      THINSLAB_RETURN_IF_ERROR(
+          ApplyBracketExposure(camera, p.requested_exposure_us, p.refresh_locked ? bracket : unlocked, applied));
+      applied_for[key] = *applied;
+      current_exposure = key;
     } else {
-      *applied = applied_for[requested];
+      *applied = applied_for[key];
     }
     return Status::Ok();
   };
-  std::optional<std::string> shown_pattern, sample_state;
+  std::optional<LightKey> shown;  // Light state set up by this run.
   SyncReference reference;
   int last_skipped_step = -1;
   for (size_t step = 0; step < plan.size(); ++step) {
     const PlannedFrame& p = plan[step];
+    const LightKey light = LightOf(p);
     FrameRecord templ;
     templ.camera_id = camera->info().id;
     templ.kind = p.kind;
     templ.sample_state = p.sample_state;
     templ.light.projector_pattern = p.pattern;
     templ.light.dot_px = p.dot_px;
-    THINSLAB_RETURN_IF_ERROR(set_exposure(p.requested_exposure_us, &templ.exposure_time_us));
+    templ.light.laser_on = p.laser_on;
+    THINSLAB_RETURN_IF_ERROR(set_exposure(p, &templ.exposure_time_us));
     bool on_disk = false;
     THINSLAB_RETURN_IF_ERROR(writer->ClaimStep(templ, &on_disk));
     if (on_disk) {
       last_skipped_step = static_cast<int>(step);
       continue;
     }
-    if (!sample_state || *sample_state != p.sample_state) {
-      THINSLAB_RETURN_IF_ERROR(change_sample(p.sample_state));
-      sample_state = p.sample_state;
+    if (!shown || shown->sample_state != p.sample_state) THINSLAB_RETURN_IF_ERROR(change_sample(p.sample_state));
+    if (!shown || shown->pattern != p.pattern) THINSLAB_RETURN_IF_ERROR(projector->ShowPattern(p.pattern));
+    if (laser != nullptr && (!shown || shown->laser_on != p.laser_on)) {
+      THINSLAB_RETURN_IF_ERROR(laser->SetEmission(p.laser_on));
     }
-    bool changed = false;
-    if (!shown_pattern || *shown_pattern != p.pattern) {
-      THINSLAB_RETURN_IF_ERROR(projector->ShowPattern(p.pattern));
-      changed = true;
-      // Resumed run: the frame on disk before this one is the previous pattern's frame, unless
-      // it shows this same pattern (the display was reopened; only a settle can confirm it).
-      if (!shown_pattern && last_skipped_step >= 0 && plan[last_skipped_step].pattern != p.pattern) {
-        const FrameRecord* before = writer->FrameOnDisk(last_skipped_step);
-        Image dn;
-        if (before != nullptr && LoadFrame(writer->dir(), writer->session(), *before, &dn).ok()) {
-          for (float& v : dn.data()) v += static_cast<float>(camera->info().black_level_dn);
-          reference.valid = true;
-          reference.raw_dn = std::move(dn);
-          reference.exposure_time_us = before->exposure_time_us;
-        }
+    LightChange change = LightChange::kNone;
+    if (!shown) {
+      // First capture of this run. Resumed: the frame on disk before it is the reference, of
+      // this same state (the devices were reopened) or of the state before.
+      change = LightChange::kChanged;
+      const FrameRecord* before = last_skipped_step >= 0 ? writer->FrameOnDisk(last_skipped_step) : nullptr;
+      Image dn;
+      if (before != nullptr && LoadFrame(writer->dir(), writer->session(), *before, &dn).ok()) {
+        for (float& v : dn.data()) v += static_cast<float>(camera->info().black_level_dn);
+        reference.valid = true;
+        reference.raw_dn = std::move(dn);
+        reference.exposure_time_us = before->exposure_time_us;
+        if (LightOf(plan[last_skipped_step]) == light) change = LightChange::kReshown;
       }
-      shown_pattern = p.pattern;
+    } else if (*shown != light) {
+      change = LightChange::kChanged;
     }
-    THINSLAB_RETURN_IF_ERROR(CaptureSynchronized(camera, templ, changed, sync, &reference, writer));
+    shown = light;
+    THINSLAB_RETURN_IF_ERROR(CaptureSynchronized(camera, templ, change, sync, &reference, writer));
   }
-  if (shown_pattern) return projector->ShowPattern("");
-  return Status::Ok();
+  if (!shown) return Status::Ok();
+  if (laser != nullptr && shown->laser_on) THINSLAB_RETURN_IF_ERROR(laser->SetEmission(false));
+  return projector->ShowPattern("");
 }
 
 }  // namespace thinslab

@@ -201,6 +201,7 @@ TEST(DotScan, SynchronisationAcceptsOnlyFramesShowingTheNewPattern) {
   const DotScanSessionOptions options = SmallScan();
   const Status status = RunDotScanSession(options, &rig, &rig, NoSample(), &writer);
   ASSERT_TRUE(status.ok()) << status.message();
+  ASSERT_TRUE(writer.Save().ok());
   Session session;
   ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
   const size_t expected = 2 + 2 + 16 * 2;

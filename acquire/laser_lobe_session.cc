@@ -3,7 +3,6 @@
 
 #include <sstream>
 
-#include "acquire/capture_with_retries.h"
 
 namespace thinslab {
 
@@ -13,8 +12,10 @@ bool LaserLobeSessionOptions::Check(std::string* error) const {
     msg << "LaserLobeSessionOptions::exposure_times_us is empty. Violated constraint: at least one exposure";
   } else if (frames_per_exposure < 1) {
     msg << "LaserLobeSessionOptions::frames_per_exposure = " << frames_per_exposure << ". Violated constraint: >= 1";
-  } else if (max_retries < 0) {
-    msg << "LaserLobeSessionOptions::max_retries = " << max_retries << ". Violated constraint: >= 0";
+  } else if (!(max_refresh_mismatch >= 0)) {
+    msg << "LaserLobeSessionOptions::max_refresh_mismatch = " << max_refresh_mismatch << ". Violated constraint: >= 0";
+  } else if (!sync.Check(error)) {
+    msg << "LaserLobeSessionOptions::sync: " << *error;
   } else {
     for (double t : exposure_times_us) {
       if (!(t > 0)) {
@@ -29,10 +30,7 @@ bool LaserLobeSessionOptions::Check(std::string* error) const {
   return false;
 }
 
-Status RunLaserLobeSession(const LaserLobeSessionOptions& options, Camera* camera, Laser* laser,
-                           Projector* flat_source, const SampleChanger& change_sample, SessionWriter* writer) {
-  std::string error;
-  if (!options.Check(&error)) return Status::Error(error);
+std::vector<PlannedFrame> PlanLaserLobeSession(const LaserLobeSessionOptions& options, double refresh_period_s) {
   struct Step {
     const char* kind;
     const char* sample_state;
@@ -44,27 +42,39 @@ Status RunLaserLobeSession(const LaserLobeSessionOptions& options, Camera* camer
   steps.push_back({"dark", "none", false, ""});
   steps.push_back({"laser", "contaminated", true, ""});
   if (options.capture_clean) steps.push_back({"laser", "clean", true, ""});
+  ExposureBracketOptions flat_bracket;
+  flat_bracket.exposures_us = options.exposure_times_us;
+  flat_bracket.refresh_period_s = refresh_period_s;
+  const std::vector<double> flat_exposures = PlanExposureBracket(flat_bracket);
+  std::vector<PlannedFrame> plan;
   for (const Step& step : steps) {
-    THINSLAB_RETURN_IF_ERROR(change_sample(step.sample_state));
-    THINSLAB_RETURN_IF_ERROR(flat_source->ShowPattern(step.pattern));
-    THINSLAB_RETURN_IF_ERROR(laser->SetEmission(step.laser_on));
-    for (double requested_us : options.exposure_times_us) {
-      double applied_us = 0;
-      THINSLAB_RETURN_IF_ERROR(camera->SetExposure(requested_us, &applied_us));
+    const bool lit_by_display = *step.pattern != '\0';
+    for (double requested_us : lit_by_display ? flat_exposures : options.exposure_times_us) {
       for (int i = 0; i < options.frames_per_exposure; ++i) {
-        FrameRecord templ;
-        templ.camera_id = camera->info().id;
-        templ.kind = step.kind;
-        templ.sample_state = step.sample_state;
-        templ.exposure_time_us = applied_us;
-        templ.light.projector_pattern = step.pattern;
-        templ.light.laser_on = step.laser_on;
-        THINSLAB_RETURN_IF_ERROR(CaptureWithRetries(camera, templ, options.max_retries, writer));
+        PlannedFrame p;
+        p.kind = step.kind;
+        p.sample_state = step.sample_state;
+        p.pattern = step.pattern;
+        p.requested_exposure_us = requested_us;
+        p.laser_on = step.laser_on;
+        p.refresh_locked = lit_by_display;
+        plan.push_back(p);
       }
     }
   }
-  THINSLAB_RETURN_IF_ERROR(laser->SetEmission(false));
-  return flat_source->ShowPattern("");
+  return plan;
+}
+
+Status RunLaserLobeSession(const LaserLobeSessionOptions& options, Camera* camera, Laser* laser,
+                           Projector* flat_source, const SampleChanger& change_sample, SessionWriter* writer) {
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  ExposureBracketOptions exposure;
+  exposure.exposures_us = options.exposure_times_us;
+  exposure.refresh_period_s = flat_source->refresh_period_s();
+  exposure.max_refresh_mismatch = options.max_refresh_mismatch;
+  return RunSynchronizedPlan(PlanLaserLobeSession(options, flat_source->refresh_period_s()), exposure, options.sync,
+                             camera, flat_source, change_sample, writer, laser);
 }
 
 }  // namespace thinslab

@@ -4,14 +4,19 @@
 // the board behind it. The lobe spans ~6 decades, so every state is an exposure bracket:
 //   flat  (board under a uniform flat field, no laser; for the camera's vignetting),
 //   dark  (laser off), laser on with the contaminated sample, laser on with clean glass.
+// Every frame goes through the display-camera synchronisation of acquire/display_sync.h (a frame
+// counts once the change of flat field, laser or sample is seen). The flat bracket, lit by the
+// display, is rounded to whole refresh periods when the flat-field source has one (duplicates
+// dropped); the laser-lit and dark brackets are not.
 #pragma once
 
 #include <functional>
 #include <string>
 #include <vector>
 
+#include "acquire/display_sync.h"
+#include "acquire/sample_changer.h"
 #include "acquire/session_writer.h"
-#include "acquire/shadow_map_session.h"
 #include "drivers/camera.h"
 #include "drivers/display.h"
 #include "drivers/laser.h"
@@ -24,10 +29,17 @@ struct LaserLobeSessionOptions {
   int frames_per_exposure = 1;
   bool capture_clean = true;  // Clean-glass bracket for background subtraction and checks.
   bool capture_flat = true;   // Flat-field bracket of the board (projector "flat").
-  int max_retries = 2;
+  // Synchronisation rule and retries (sync.max_retries further attempts after a failed capture).
+  DisplaySyncOptions sync;
+  // Largest accepted mismatch of an applied flat exposure to whole refresh periods (fraction of one).
+  double max_refresh_mismatch = 0.02;
 
   bool Check(std::string* error) const;
 };
+
+// The frames in order: flat, dark, laser (contaminated), laser (clean); `refresh_period_s` of
+// the flat-field source (0: none) rounds the flat bracket.
+std::vector<PlannedFrame> PlanLaserLobeSession(const LaserLobeSessionOptions& options, double refresh_period_s);
 
 Status RunLaserLobeSession(const LaserLobeSessionOptions& options, Camera* camera, Laser* laser,
                            Projector* flat_source, const SampleChanger& change_sample, SessionWriter* writer);

@@ -1,9 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "acquire/session_journal.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <filesystem>
 #include <regex>
@@ -17,20 +14,6 @@ namespace thinslab {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr char kJournalName[] = "journal.log";
-
-// Appends one line to journal.log (O_APPEND, so concurrent partial writes cannot interleave
-// within a line; a SIGKILL can at worst truncate the last line). fsync'd: the journal is the
-// record of what happened when everything else went wrong.
-void AppendJournal(const std::string& session_dir, const std::string& line) {
-  const std::string path = JoinPath(session_dir, kJournalName);
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  if (fd < 0) return;  // The journal is an audit aid; the manifest is authoritative.
-  const std::string text = UtcTimestampNow() + " " + line + "\n";
-  if (::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size())) ::fsync(fd);
-  ::close(fd);
-}
 
 // Temporary siblings WriteFileAtomically leaves behind when the process is killed between
 // writing and renaming ("<name>.tmp-<pid>"); never part of a session.
@@ -122,6 +105,8 @@ bool AcquisitionRunOptions::Check(std::string* error) const {
     *error = "AcquisitionRunOptions::session_dir is empty";
   } else if (planned_frames < 0) {
     *error = "AcquisitionRunOptions::planned_frames = " + std::to_string(planned_frames) + ". Violated constraint: >= 0";
+  } else if (!writer.Check(error)) {
+    *error = "AcquisitionRunOptions::writer: " + *error;
   } else {
     return true;
   }
@@ -146,6 +131,8 @@ Status RunAcquisition(const AcquisitionRunOptions& options, const Session& heade
   }
   std::error_code ec;
   SessionWriter writer;
+  SessionWriterOptions writer_options = options.writer;
+  writer_options.journal = true;  // The durable record of every frame (docs/acquisition.md).
   if (!options.resume) {
     if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
       return Status::Error(dir + ": output session folder exists and is not empty (add --resume to continue the "
@@ -159,12 +146,12 @@ Status RunAcquisition(const AcquisitionRunOptions& options, const Session& heade
     start.acquisition.plan = options.plan;
     start.acquisition.planned_frames = options.planned_frames;
     AddEvent(&start, "started", "", "camera " + options.camera_name);
-    THINSLAB_RETURN_IF_ERROR(writer.Open(dir, start));
-    AppendJournal(dir, EventLine(start.acquisition.events.back()));
+    THINSLAB_RETURN_IF_ERROR(writer.Open(dir, start, writer_options));
+    THINSLAB_RETURN_IF_ERROR(writer.AppendJournalLine(EventLine(start.acquisition.events.back())));
   } else {
     if (!FileExists(manifest)) return Status::Error(dir + ": nothing to resume (no " + kSessionManifestName + ")");
     RemoveStaleTemporaries(dir);
-    THINSLAB_RETURN_IF_ERROR(writer.Open(dir, header));
+    THINSLAB_RETURN_IF_ERROR(writer.Open(dir, header, writer_options));
     Session* s = writer.mutable_session();
     if (!s->acquisition.present) {
       return Status::Error(manifest + ": no \"acquisition\" record: the session was not written by `thinslab "
@@ -194,7 +181,7 @@ Status RunAcquisition(const AcquisitionRunOptions& options, const Session& heade
     AddEvent(s, "resumed", "", how + "; " + std::to_string(writer.steps_on_disk()) + " usable frames on disk; camera " +
                                    options.camera_name);
     THINSLAB_RETURN_IF_ERROR(writer.Save());
-    AppendJournal(dir, EventLine(s->acquisition.events.back()));
+    THINSLAB_RETURN_IF_ERROR(writer.AppendJournalLine(EventLine(s->acquisition.events.back())));
   }
 
   DeviceFailureTracker local_tracker;
@@ -206,14 +193,7 @@ Status RunAcquisition(const AcquisitionRunOptions& options, const Session& heade
     progress = std::make_unique<ProgressReporter>(options.label, options.planned_frames, options.progress,
                                                   options.progress_is_terminal);
   }
-  size_t journaled = writer.session().frames.size();
   writer.set_observer([&]() {
-    const Session& s = writer.session();
-    for (; journaled < s.frames.size(); ++journaled) {
-      const FrameRecord& f = s.frames[journaled];
-      AppendJournal(dir, "frame " + std::to_string(f.index) + " " + FrameStatusName(f.status) + " " +
-                             (f.file.empty() ? "-" : f.file) + (f.error.empty() ? "" : " error: " + f.error));
-    }
     if (progress) {
       // Called once a claimed step is on disk (written now or skipped on resume).
       progress->Update(writer.steps_claimed(), std::min(writer.steps_claimed(), writer.steps_on_disk()));
@@ -248,15 +228,11 @@ Status RunAcquisition(const AcquisitionRunOptions& options, const Session& heade
     AddEvent(s, "failed", tracker->device, status.message());
   }
   result->state = s->acquisition.state;
-  // A frame not yet journaled by the observer (a failed attempt) is logged with the event.
   writer.set_observer(nullptr);
-  for (; journaled < s->frames.size(); ++journaled) {
-    const FrameRecord& f = s->frames[journaled];
-    AppendJournal(dir, "frame " + std::to_string(f.index) + " " + FrameStatusName(f.status) + " " +
-                           (f.file.empty() ? "-" : f.file) + (f.error.empty() ? "" : " error: " + f.error));
-  }
-  AppendJournal(dir, EventLine(s->acquisition.events.back()));
-  const Status saved = writer.Save();
+  // The manifest first: it holds every frame and the event; the journal line is its audit copy.
+  Status saved = writer.Save();
+  const Status journaled = writer.AppendJournalLine(EventLine(s->acquisition.events.back()));
+  if (saved.ok()) saved = journaled;
   if (progress) progress->Finish(result->state);
   if (!status.ok()) {
     if (!saved.ok()) return Status::Error(status.message() + " (and the manifest could not be updated: " + saved.message() + ")");

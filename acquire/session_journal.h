@@ -2,14 +2,14 @@
 // One acquisition run: opens a new session folder or resumes an interrupted one, runs a session
 // script (shadow maps, laser lobe, dot scan, bracket) through the driver interfaces, and keeps
 // the record of what happened:
-//  - session.json (rewritten atomically after every frame) is authoritative: a frame exists
-//    once its file and its manifest entry are both on disk;
+//  - a frame exists once its file and its record line in journal.log (appended and fsync'd
+//    after the file) are on disk; journal.log also logs the events, one line each;
+//  - session.json is rewritten atomically at bounded intervals (SessionWriterOptions), at
+//    every event and at the end of the run; a resume rebuilds the frames after its last write
+//    from the journal (ReadSessionWithJournal), so a kill loses nothing;
 //  - session.json "acquisition" holds the state ("running", "complete", "failed",
 //    "interrupted"), the plan the frames follow, counters and the event list (started,
-//    resumed, completed, failed with the device and its message);
-//  - journal.log is an append-only text log of the same events and of every frame written,
-//    one line each, kept for audit (a crash can leave its last line incomplete; it is never
-//    read back).
+//    resumed, completed, failed with the device and its message).
 // Resume (docs/acquisition.md): the script is run again from the start; every planned frame
 // already usable on disk is claimed and skipped (SessionWriter::ClaimStep checks it is the same
 // frame), so nothing is captured twice and frame indices continue where they stopped.
@@ -82,6 +82,8 @@ struct AcquisitionRunOptions {
   // Polled between frames; a non-empty reason stops the run as "interrupted".
   std::function<std::string()> stop_check;
   DeviceFailureTracker* tracker = nullptr;  // Optional: projector/laser failures.
+  // When session.json is rewritten; `journal` is always on for an acquisition.
+  SessionWriterOptions writer;
 
   bool Check(std::string* error) const;
 };

@@ -11,10 +11,11 @@
 #include <sstream>
 
 #include "acquire/progress.h"
-#include "acquire/shadow_map_session.h"
+#include "acquire/capture_with_retries.h"
 #include "core/file.h"
 #include "core/session_io.h"
 #include "tests/testing/temp_dir.h"
+#include "tests/testing/tiny_session.h"
 
 namespace thinslab {
 namespace {
@@ -23,17 +24,7 @@ namespace {
 // `fail_from` on (a camera unplugged mid-session).
 class CountingFakeCamera : public Camera {
  public:
-  explicit CountingFakeCamera(int fail_from = -1) : fail_from_(fail_from) {
-    info_.id = "cam0";
-    info_.model = "fake";
-    info_.width_px = 8;
-    info_.height_px = 6;
-    info_.fx_px = info_.fy_px = 10;
-    info_.cx_px = 3.5;
-    info_.cy_px = 2.5;
-    info_.bit_depth = 12;
-    info_.saturation_dn = 4095;
-  }
+  explicit CountingFakeCamera(int fail_from = -1) : info_(TinyCamera("fake")), fail_from_(fail_from) {}
   const CameraInfo& info() const override { return info_; }
   Status SetExposure(double requested_us, double* applied_us) override {
     exposure_us_ = std::round(requested_us);
@@ -62,27 +53,32 @@ class CountingFakeCamera : public Camera {
   double exposure_us_ = 1000;
 };
 
-class NullProjector : public Projector {
- public:
-  Status ShowPattern(const std::string&) override { return Status::Ok(); }
-};
-
 Session Header(const CameraInfo& camera) {
-  Session header;
+  Session header = TinySessionHeader("shadow_map", camera);
   header.name = "journal";
-  header.kind = "shadow_map";
-  header.rig.cameras = {camera};
-  header.rig.sample.region_min_m = Eigen::Vector2d(-1e-3, -1e-3);
-  header.rig.sample.region_max_m = Eigen::Vector2d(1e-3, 1e-3);
-  header.rig.sample.pixel_pitch_m = 1e-4;
   return header;
 }
 
-ShadowMapSessionOptions SmallShadowPlan() {
-  ShadowMapSessionOptions options;
-  options.frames_per_state = 3;
-  options.dark_frames = 2;
-  return options;
+// The frames of a small shadow-map session (2 dark, 3 reference, 3 shadow), one capture each
+// with retries: the bookkeeping of RunAcquisition under test, without display synchronisation
+// (acquire/shadow_map_session_test.cc tests that).
+Status CaptureShadowPlan(Camera* camera, SessionWriter* writer) {
+  const struct {
+    const char* kind;
+    const char* sample_state;
+    int count;
+  } steps[] = {{"dark", "clean", 2}, {"reference", "clean", 3}, {"shadow", "contaminated", 3}};
+  for (const auto& step : steps) {
+    for (int i = 0; i < step.count; ++i) {
+      FrameRecord templ;
+      templ.camera_id = camera->info().id;
+      templ.kind = step.kind;
+      templ.sample_state = step.sample_state;
+      templ.exposure_time_us = 1000;
+      THINSLAB_RETURN_IF_ERROR(CaptureWithRetries(camera, templ, /*max_retries=*/2, writer));
+    }
+  }
+  return Status::Ok();
 }
 
 Status RunShadow(const std::string& dir, bool resume, const std::string& plan, Camera* camera,
@@ -94,13 +90,7 @@ Status RunShadow(const std::string& dir, bool resume, const std::string& plan, C
   run.planned_frames = 8;
   run.camera_name = "fake";
   run.stop_check = std::move(stop);
-  NullProjector projector;
-  return RunAcquisition(run, Header(camera->info()), camera,
-                        [&](Camera* cam, SessionWriter* writer) {
-                          return RunShadowMapSession(SmallShadowPlan(), cam, &projector,
-                                                     [](const std::string&) { return Status::Ok(); }, writer);
-                        },
-                        result);
+  return RunAcquisition(run, Header(camera->info()), camera, CaptureShadowPlan, result);
 }
 
 TEST(AcquisitionRun, DeviceFailingMidSessionLeavesAManifestThatSaysWhatHappened) {

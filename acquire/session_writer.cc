@@ -1,11 +1,19 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "acquire/session_writer.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
+#include <filesystem>
+#include <regex>
+#include <set>
 
 #include "core/file.h"
 #include "core/session_io.h"
@@ -25,24 +33,218 @@ std::string UtcTimestampNow() {
   return buf;
 }
 
-Status SessionWriter::Open(const std::string& session_dir, const Session& header) {
+bool SessionWriterOptions::Check(std::string* error) const {
+  if (manifest_min_new_frames < 1) {
+    *error = "SessionWriterOptions::manifest_min_new_frames = " + std::to_string(manifest_min_new_frames) +
+             ". Violated constraint: >= 1";
+  } else if (!(manifest_growth_fraction >= 0) || !std::isfinite(manifest_growth_fraction)) {
+    *error = "SessionWriterOptions::manifest_growth_fraction = " + std::to_string(manifest_growth_fraction) +
+             ". Violated constraint: finite and >= 0";
+  } else if (!(manifest_max_age_s > 0)) {
+    *error = "SessionWriterOptions::manifest_max_age_s = " + std::to_string(manifest_max_age_s) +
+             ". Violated constraint: > 0";
+  } else {
+    return true;
+  }
+  return false;
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// A frame line of journal.log: "<time> frame <index> <status> captures=<n> discarded=<m> <json>",
+// <json> the frames[k] object of docs/format.md 2.4; the counters are the session's
+// acquisition.camera_captures and discarded_frames once the frame was recorded.
+std::string JournalFrameText(const FrameRecord& record, const AcquisitionInfo& acquisition, const std::string& json) {
+  return "frame " + std::to_string(record.index) + " " + FrameStatusName(record.status) +
+         " captures=" + std::to_string(acquisition.camera_captures) +
+         " discarded=" + std::to_string(acquisition.discarded_frames) + " " + json;
+}
+
+// Parses a frame line; false if the line is not one (an event line, or a line of the audit-only
+// journal that older versions wrote).
+bool ParseJournalFrameLine(const std::string& line, int* captures, int* discarded, std::string* json) {
+  int index = 0, consumed = -1;
+  char status[16];
+  if (std::sscanf(line.c_str(), "%*s frame %d %15s captures=%d discarded=%d %n", &index, status, captures,
+                  discarded, &consumed) != 4 ||
+      consumed < 0) {
+    return false;
+  }
+  *json = line.substr(static_cast<size_t>(consumed));
+  return true;
+}
+
+Status WriteAll(int fd, const std::string& text, const std::string& path) {
+  size_t written = 0;
+  while (written < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + written, text.size() - written);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return Status::Error(path + ": write failed: " + std::strerror(errno));
+    }
+    written += static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0) return Status::Error(path + ": fsync failed: " + std::strerror(errno));
+  return Status::Ok();
+}
+
+// A kill can leave the journal's last line incomplete (no newline): it never became a record.
+// Cut it off, so that the next line starts on a line of its own.
+Status DropIncompleteLastLine(const std::string& path) {
+  std::string bytes;
+  if (!FileExists(path)) return Status::Ok();
+  THINSLAB_RETURN_IF_ERROR(ReadFileToString(path, &bytes));
+  if (bytes.empty() || bytes.back() == '\n') return Status::Ok();
+  const size_t keep = bytes.rfind('\n') == std::string::npos ? 0 : bytes.rfind('\n') + 1;
+  if (::truncate(path.c_str(), static_cast<off_t>(keep)) != 0) {
+    return Status::Error(path + ": cannot drop the incomplete last line: " + std::strerror(errno));
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status ReadSessionWithJournal(const std::string& session_dir, Session* session, int* journaled_frames) {
+  if (journaled_frames != nullptr) *journaled_frames = 0;
+  Session s;
+  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &s));
+  const std::string path = JoinPath(session_dir, kSessionJournalName);
+  int added = 0;
+  if (FileExists(path)) {
+    std::string bytes;
+    THINSLAB_RETURN_IF_ERROR(ReadFileToString(path, &bytes));
+    size_t begin = 0;
+    for (int line_number = 1;; ++line_number) {
+      const size_t end = bytes.find('\n', begin);
+      if (end == std::string::npos) break;  // No line, or the last one cut short by a kill.
+      const std::string line = bytes.substr(begin, end - begin);
+      begin = end + 1;
+      int captures = 0, discarded = 0;
+      std::string json;
+      if (!ParseJournalFrameLine(line, &captures, &discarded, &json)) continue;
+      const std::string where = path + ":" + std::to_string(line_number);
+      FrameRecord record;
+      THINSLAB_RETURN_IF_ERROR(ParseFrameRecordJson(json, where, &record));
+      const int next = static_cast<int>(s.frames.size());
+      if (record.index < next) continue;  // The manifest has it already.
+      if (record.index > next) {
+        return Status::Error(where + ": frame record " + std::to_string(record.index) + " follows frame " +
+                             std::to_string(next - 1) + ": records are missing");
+      }
+      s.frames.push_back(std::move(record));
+      s.acquisition.camera_captures = std::max(s.acquisition.camera_captures, captures);
+      s.acquisition.discarded_frames = std::max(s.acquisition.discarded_frames, discarded);
+      ++added;
+    }
+  }
+  if (added > 0) {
+    THINSLAB_RETURN_IF_ERROR(ValidateSession(s, session_dir)
+                                 .WithContext("with the " + std::to_string(added) + " frames journaled in " + path));
+  }
+  if (journaled_frames != nullptr) *journaled_frames = added;
+  *session = std::move(s);
+  return Status::Ok();
+}
+
+SessionWriter::~SessionWriter() {
+  if (journal_fd_ >= 0) ::close(journal_fd_);
+}
+
+Status SessionWriter::Open(const std::string& session_dir, const Session& header, const SessionWriterOptions& options) {
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
   dir_ = session_dir;
+  options_ = options;
   on_disk_.clear();
   steps_claimed_ = 0;
-  if (FileExists(JoinPath(session_dir, kSessionManifestName))) {
-    THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session_).WithContext("resuming session"));
+  if (journal_fd_ >= 0) ::close(journal_fd_);
+  journal_fd_ = -1;
+  const std::string journal = JoinPath(session_dir, kSessionJournalName);
+  const bool resume = FileExists(JoinPath(session_dir, kSessionManifestName));
+  if (resume) {
+    if (options_.journal) {
+      THINSLAB_RETURN_IF_ERROR(DropIncompleteLastLine(journal));
+      THINSLAB_RETURN_IF_ERROR(ReadSessionWithJournal(session_dir, &session_).WithContext("resuming session"));
+    } else {
+      THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session_).WithContext("resuming session"));
+    }
     for (size_t i = 0; i < session_.frames.size(); ++i) {
       if (session_.frames[i].status != FrameStatus::kFailed) on_disk_.push_back(static_cast<int>(i));
     }
     std::sort(on_disk_.begin(), on_disk_.end(),
               [this](int a, int b) { return session_.frames[a].index < session_.frames[b].index; });
+    THINSLAB_RETURN_IF_ERROR(RemoveUnrecordedFrameFiles());
+  } else {
+    THINSLAB_RETURN_IF_ERROR(CreateDirectories(session_dir));
+    session_ = header;
+    session_.frames.clear();
+    if (session_.created_utc.empty()) session_.created_utc = UtcTimestampNow();
+  }
+  if (options_.journal) {
+    journal_fd_ = ::open(journal.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (journal_fd_ < 0) return Status::Error(journal + ": cannot open for appending: " + std::strerror(errno));
+  }
+  if (resume) {
+    // Until the next write, the manifest holds the frames it held when opened.
+    frames_in_manifest_ = static_cast<int>(session_.frames.size());
+    manifest_written_at_ = std::chrono::steady_clock::now();
     return Status::Ok();
   }
-  THINSLAB_RETURN_IF_ERROR(CreateDirectories(session_dir));
-  session_ = header;
-  session_.frames.clear();
-  if (session_.created_utc.empty()) session_.created_utc = UtcTimestampNow();
-  return WriteSession(dir_, session_);
+  return Save();
+}
+
+// Frame files named as AddFrame names them, with an index no record has: the frame was
+// written and the process killed before its record became durable. A later capture would
+// overwrite it, unless that index goes to a failed attempt; remove it now.
+Status SessionWriter::RemoveUnrecordedFrameFiles() const {
+  static const std::regex frame_name(R"([0-9]+\.png)");
+  const fs::path frames_dir = fs::path(dir_) / "frames";
+  std::error_code ec;
+  if (!fs::is_directory(frames_dir, ec)) return Status::Ok();
+  std::set<std::string> recorded;
+  for (const FrameRecord& f : session_.frames) {
+    if (!f.file.empty()) recorded.insert(fs::path(f.file).lexically_normal().string());
+  }
+  std::vector<fs::path> unrecorded;
+  for (auto it = fs::recursive_directory_iterator(frames_dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (!it->is_regular_file(ec) || !std::regex_match(name, frame_name)) continue;
+    if (std::stol(name) < static_cast<long>(session_.frames.size())) continue;
+    const std::string rel = it->path().lexically_relative(dir_).lexically_normal().string();
+    if (recorded.count(rel) == 0) unrecorded.push_back(it->path());
+  }
+  for (const fs::path& p : unrecorded) {
+    if (!fs::remove(p, ec) && ec) return Status::Error(p.string() + ": cannot remove unrecorded frame: " + ec.message());
+  }
+  return Status::Ok();
+}
+
+Status SessionWriter::AppendJournalLine(const std::string& text) {
+  if (journal_fd_ < 0) return Status::Ok();
+  return WriteAll(journal_fd_, UtcTimestampNow() + " " + text + "\n", JoinPath(dir_, kSessionJournalName));
+}
+
+bool SessionWriter::ManifestIsDue() const {
+  const int fresh = unsaved_frames();
+  if (fresh <= 0) return false;
+  const double geometric = options_.manifest_growth_fraction * frames_in_manifest_;
+  if (fresh >= options_.manifest_min_new_frames && fresh >= geometric) return true;
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - manifest_written_at_).count() >=
+         options_.manifest_max_age_s;
+}
+
+Status SessionWriter::Record() {
+  const FrameRecord& record = session_.frames.back();
+  if (journal_fd_ >= 0) {
+    std::string json;
+    THINSLAB_RETURN_IF_ERROR(FrameRecordToJson(record, &json));
+    THINSLAB_RETURN_IF_ERROR(AppendJournalLine(JournalFrameText(record, session_.acquisition, json)));
+  }
+  if (ManifestIsDue()) THINSLAB_RETURN_IF_ERROR(Save());
+  return Status::Ok();
 }
 
 Status SessionWriter::AddFrame(FrameRecord record, const Image& raw_dn, int* index) {
@@ -60,7 +262,7 @@ Status SessionWriter::AddFrame(FrameRecord record, const Image& raw_dn, int* ind
   THINSLAB_RETURN_IF_ERROR(WriteRawFrame(JoinPath(dir_, record.file), raw_dn, camera->bit_depth));
   session_.frames.push_back(record);
   if (index != nullptr) *index = record.index;
-  THINSLAB_RETURN_IF_ERROR(WriteSession(dir_, session_));
+  THINSLAB_RETURN_IF_ERROR(Record());
   Notify();
   return Status::Ok();
 }
@@ -79,10 +281,15 @@ Status SessionWriter::AddFailedFrame(FrameRecord record, const std::string& erro
   record.error = error;
   if (record.timestamp_utc.empty()) record.timestamp_utc = UtcTimestampNow();
   session_.frames.push_back(record);
-  return WriteSession(dir_, session_);
+  return Record();
 }
 
-Status SessionWriter::Save() { return WriteSession(dir_, session_); }
+Status SessionWriter::Save() {
+  THINSLAB_RETURN_IF_ERROR(WriteSession(dir_, session_));
+  frames_in_manifest_ = static_cast<int>(session_.frames.size());
+  manifest_written_at_ = std::chrono::steady_clock::now();
+  return Status::Ok();
+}
 
 const FrameRecord* SessionWriter::FrameOnDisk(int step) const {
   if (step < 0 || step >= static_cast<int>(on_disk_.size())) return nullptr;

@@ -3,7 +3,6 @@
 
 #include <sstream>
 
-#include "acquire/capture_with_retries.h"
 
 namespace thinslab {
 
@@ -15,8 +14,10 @@ bool ShadowMapSessionOptions::Check(std::string* error) const {
     msg << "ShadowMapSessionOptions::dark_frames = " << dark_frames << ". Violated constraint: >= 0";
   } else if (!(exposure_time_us > 0)) {
     msg << "ShadowMapSessionOptions::exposure_time_us = " << exposure_time_us << ". Violated constraint: > 0";
-  } else if (max_retries < 0) {
-    msg << "ShadowMapSessionOptions::max_retries = " << max_retries << ". Violated constraint: >= 0";
+  } else if (!(max_refresh_mismatch >= 0)) {
+    msg << "ShadowMapSessionOptions::max_refresh_mismatch = " << max_refresh_mismatch << ". Violated constraint: >= 0";
+  } else if (!sync.Check(error)) {
+    msg << "ShadowMapSessionOptions::sync: " << *error;
   } else {
     return true;
   }
@@ -24,14 +25,7 @@ bool ShadowMapSessionOptions::Check(std::string* error) const {
   return false;
 }
 
-Status RunShadowMapSession(const ShadowMapSessionOptions& options, Camera* camera,
-                           Projector* projector, const SampleChanger& change_sample,
-                           SessionWriter* writer) {
-  std::string error;
-  if (!options.Check(&error)) return Status::Error(error);
-  double applied_us = 0;
-  THINSLAB_RETURN_IF_ERROR(camera->SetExposure(options.exposure_time_us, &applied_us));
-
+std::vector<PlannedFrame> PlanShadowMapSession(const ShadowMapSessionOptions& options) {
   struct Step {
     const char* kind;
     const char* sample_state;
@@ -43,20 +37,31 @@ Status RunShadowMapSession(const ShadowMapSessionOptions& options, Camera* camer
       {"reference", "clean", "flat", options.frames_per_state},
       {"shadow", "contaminated", "flat", options.frames_per_state},
   };
+  std::vector<PlannedFrame> plan;
   for (const Step& step : steps) {
-    THINSLAB_RETURN_IF_ERROR(change_sample(step.sample_state));
-    THINSLAB_RETURN_IF_ERROR(projector->ShowPattern(step.pattern));
     for (int i = 0; i < step.count; ++i) {
-      FrameRecord templ;
-      templ.camera_id = camera->info().id;
-      templ.kind = step.kind;
-      templ.sample_state = step.sample_state;
-      templ.exposure_time_us = applied_us;
-      templ.light.projector_pattern = step.pattern;
-      THINSLAB_RETURN_IF_ERROR(CaptureWithRetries(camera, templ, options.max_retries, writer));
+      PlannedFrame p;
+      p.kind = step.kind;
+      p.sample_state = step.sample_state;
+      p.pattern = step.pattern;
+      p.requested_exposure_us = options.exposure_time_us;  // Dark too: it is subtracted from the others.
+      plan.push_back(p);
     }
   }
-  return projector->ShowPattern("");
+  return plan;
+}
+
+Status RunShadowMapSession(const ShadowMapSessionOptions& options, Camera* camera,
+                           Projector* projector, const SampleChanger& change_sample,
+                           SessionWriter* writer) {
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  ExposureBracketOptions exposure;
+  exposure.exposures_us = {options.exposure_time_us};
+  exposure.refresh_period_s = projector->refresh_period_s();
+  exposure.max_refresh_mismatch = options.max_refresh_mismatch;
+  return RunSynchronizedPlan(PlanShadowMapSession(options), exposure, options.sync, camera, projector, change_sample,
+                             writer);
 }
 
 }  // namespace thinslab

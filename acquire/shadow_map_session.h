@@ -2,12 +2,17 @@
 // Shadow-map capture (Gu et al. 2007, Sec. 5.1, Fig. 9a): the projector floods the pane with
 // a flat field, the camera records the Lambertian board behind it. Three states are taken:
 // dark (projector off), reference (clean glass) and shadow (contaminated glass), several
-// frames each so the fit can average them. A failed capture is recorded and retried.
+// frames each so the fit can average them. Every frame goes through the display-camera
+// synchronisation of acquire/display_sync.h (a frame counts once the change of projector or
+// sample is seen); with a scanned projector (refresh_period_s() > 0) the exposure is a whole
+// number of refresh periods. A failed capture is recorded and retried.
 #pragma once
 
-#include <functional>
 #include <string>
+#include <vector>
 
+#include "acquire/display_sync.h"
+#include "acquire/sample_changer.h"
 #include "acquire/session_writer.h"
 #include "drivers/camera.h"
 #include "drivers/display.h"
@@ -20,15 +25,16 @@ struct ShadowMapSessionOptions {
   int dark_frames = 2;
   // Requested exposure; the applied (read-back) one is recorded.
   double exposure_time_us = 20000;
-  // Further attempts after a failed capture before the session gives up.
-  int max_retries = 2;
+  // Synchronisation rule and retries (sync.max_retries further attempts after a failed capture).
+  DisplaySyncOptions sync;
+  // Largest accepted mismatch of the applied exposure to whole refresh periods (fraction of one).
+  double max_refresh_mismatch = 0.02;
 
   bool Check(std::string* error) const;
 };
 
-// Moves the sample between "clean" and "contaminated" (an operator prompt at the rig, a
-// state switch in the simulator).
-using SampleChanger = std::function<Status(const std::string& sample_state)>;
+// The frames in order: dark, reference, shadow.
+std::vector<PlannedFrame> PlanShadowMapSession(const ShadowMapSessionOptions& options);
 
 Status RunShadowMapSession(const ShadowMapSessionOptions& options, Camera* camera,
                            Projector* projector, const SampleChanger& change_sample,

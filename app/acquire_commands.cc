@@ -35,6 +35,7 @@
 #include "sim/shadow_map_rig.h"
 #include "sim/sim_board_camera.h"
 #include "sim/sim_dot_monitor.h"
+#include "sim/sim_session.h"
 
 namespace thinslab {
 namespace {
@@ -299,7 +300,10 @@ int Finish(const std::string& kind, const CommonOptions& common, const std::stri
   // frames are the ones an uninterrupted run would have taken (per-capture seeded noise).
   if (sim_camera != nullptr && common.resume && FileExists(JoinPath(common.out, kSessionManifestName))) {
     Session previous;
-    if (ReadSession(common.out, &previous).ok()) sim_camera->set_frame_counter(previous.acquisition.camera_captures);
+    // The counter of the last frame journaled: the manifest may be older (docs/acquisition.md).
+    if (ReadSessionWithJournal(common.out, &previous).ok()) {
+      sim_camera->set_frame_counter(previous.acquisition.camera_captures);
+    }
   }
   AcquisitionRunOptions run;
   run.session_dir = common.out;
@@ -346,6 +350,14 @@ int Help(const OptionParser& parser) {
 
 // ---------------------------------------------------------------------------------------
 
+void AddSyncOptions(OptionParser* parser, DisplaySyncOptions* sync) {
+  parser->AddInt("settle-captures", &sync->settle_captures, "captures before an invisible change counts as settled");
+  parser->AddInt("max-sync-captures", &sync->max_sync_captures, "captures before display-camera sync gives up");
+  parser->AddDouble("min-change-dn", &sync->min_change_dn, "smallest 3x3-mean change that shows a new pattern [DN]");
+  parser->AddDouble("sync-read-noise-dn", &sync->read_noise_dn,
+                    "camera read noise assumed by the synchronisation (the simulated rigs use their sensor's if larger) [DN]");
+}
+
 int AcquireShadowMaps(int argc, char** argv, bool sim) {
   CommonOptions common;
   SyntheticShadowSessionOptions simulated;  // Rig options (sim) and the session script's options.
@@ -361,14 +373,15 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
     parser.AddInt("dark-frames", &session.dark_frames, "dark frames (projector off)");
   }
   parser.AddDouble("exposure-us", &session.exposure_time_us, "exposure [us]");
+  AddSyncOptions(&parser, &session.sync);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) return Help(parser);
   if (!status.ok()) return Fail(status);
-  session.max_retries = common.max_retries;
+  session.sync.max_retries = common.max_retries;
   std::string error;
   if (!session.Check(&error)) return Fail(Status::Error(error));
   const std::string plan = PlanText("shadow-maps", parser.ToIni());
-  const int planned = session.dark_frames + 2 * session.frames_per_state;
+  const int planned = static_cast<int>(PlanShadowMapSession(session).size());
 
   RealDevices devices;
   status = OpenRealDevices(common, &devices);
@@ -382,6 +395,7 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
     std::unique_ptr<SimShadowMapRig> rig;
     if (status.ok()) status = SimShadowMapRig::Create(simulated.rig, tau, &rig);
     if (!status.ok()) return Fail(status);
+    session.sync = SyncForSensor(session.sync, simulated.rig.sensor);
     TeeProjector tee(rig->projector(), devices.window.get());
     TrackedProjector projector(devices.window ? static_cast<Projector*>(&tee) : rig->projector(),
                                devices.window ? devices.display_name : "projector (sim)", &tracker);
@@ -435,16 +449,15 @@ int AcquireLaser(int argc, char** argv, bool sim) {
   parser.AddInt("frames-per-exposure", &session.frames_per_exposure, "frames per bracket exposure");
   parser.AddBool("capture-clean", &session.capture_clean, "also capture the clean glass");
   parser.AddBool("capture-flat", &session.capture_flat, "also capture the board flat field");
+  AddSyncOptions(&parser, &session.sync);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) return Help(parser);
   if (status.ok() && !exposures.empty()) status = ParseExposureList(exposures, "exposures-us", &session.exposure_times_us);
   if (!status.ok()) return Fail(status);
-  session.max_retries = common.max_retries;
+  session.sync.max_retries = common.max_retries;
   std::string error;
   if (!session.Check(&error)) return Fail(Status::Error(error));
   const std::string plan = PlanText("laser", parser.ToIni());
-  const int states = 2 + (session.capture_flat ? 1 : 0) + (session.capture_clean ? 1 : 0);
-  const int planned = states * static_cast<int>(session.exposure_times_us.size()) * session.frames_per_exposure;
 
   RealDevices devices;
   status = OpenRealDevices(common, &devices);
@@ -458,6 +471,7 @@ int AcquireLaser(int argc, char** argv, bool sim) {
     std::unique_ptr<SimLaserLobeRig> rig;
     status = SimLaserLobeRig::Create(simulated, &rig);
     if (!status.ok()) return Fail(status);
+    session.sync = SyncForSensor(session.sync, simulated.sensor);
     TeeProjector tee_projector(rig->flat_source(), devices.window.get());
     TeeLaser tee_laser(rig->laser(), devices.laser.get());
     TrackedProjector flat(devices.window ? static_cast<Projector*>(&tee_projector) : rig->flat_source(),
@@ -465,6 +479,7 @@ int AcquireLaser(int argc, char** argv, bool sim) {
     TrackedLaser laser(devices.laser ? static_cast<Laser*>(&tee_laser) : rig->laser(),
                        devices.laser ? devices.laser_name : "laser (sim)", &tracker);
     const SampleChanger change = rig->sample_changer();
+    const int planned = static_cast<int>(PlanLaserLobeSession(session, flat.refresh_period_s()).size());
     return Finish("laser", common, plan, planned, MakeHeader(name, "laser_lobe", rig->rig_info(), true), rig->camera(),
                   "sim",
                   [&](Camera* camera, SessionWriter* writer) {
@@ -496,6 +511,7 @@ int AcquireLaser(int argc, char** argv, bool sim) {
                         devices.window ? devices.display_name : "flat-field source", &tracker);
   TrackedLaser laser(devices.laser.get(), devices.laser_name, &tracker);
   const SampleChanger change = OperatorSampleChanger();
+  const int planned = static_cast<int>(PlanLaserLobeSession(session, flat.refresh_period_s()).size());
   return Finish("laser", common, plan, planned, MakeHeader(common.name.empty() ? "laser_lobe" : common.name,
                                                            "laser_lobe", rig, false),
                 devices.camera.get(), common.camera,
@@ -511,11 +527,6 @@ void AddBracketOptions(OptionParser* parser, ExposureBracketOptions* bracket, st
   parser->AddDouble("min-exposure-us", &bracket->min_exposure_us, "shortest exposure of the geometric bracket [us]");
   parser->AddDouble("max-exposure-us", &bracket->max_exposure_us, "longest exposure of the geometric bracket [us]");
   parser->AddInt("exposure-steps", &bracket->steps, "exposures in the geometric bracket");
-}
-void AddSyncOptions(OptionParser* parser, DisplaySyncOptions* sync) {
-  parser->AddInt("settle-captures", &sync->settle_captures, "captures before an invisible change counts as settled");
-  parser->AddInt("max-sync-captures", &sync->max_sync_captures, "captures before display-camera sync gives up");
-  parser->AddDouble("min-change-dn", &sync->min_change_dn, "smallest 3x3-mean change that shows a new pattern [DN]");
 }
 
 void AddSimMonitorOptions(OptionParser* parser, SimDotMonitorOptions* monitor) {
@@ -601,6 +612,7 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
       rig.sample.pixel_pitch_m = monitor.monitor_pixel_pitch_m;
     }
     change = AnySampleState();
+    sync = SyncForSensor(sync, monitor.sensor);
   } else {
     if (!devices.window) return Fail(Status::Error("thinslab acquire " + kind + ": a real camera needs --display <n>"));
     display = devices.window.get();

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -15,7 +16,7 @@
 namespace thinslab {
 
 constexpr int kSessionFormatMajor = 1;
-constexpr int kSessionFormatMinor = 1;  // 1.1: stream_statistics, acquisition.
+constexpr int kSessionFormatMinor = 2;  // 1.1: stream_statistics, acquisition; 1.2: camera frame ids.
 constexpr char kSessionManifestName[] = "session.json";
 
 // OpenCV pinhole camera with distortion (k1, k2, p1, p2[, k3]); pixel centres at
@@ -110,6 +111,12 @@ struct FrameRecord {
   double gain_db = 0;
   LightState light;
   std::string timestamp_utc;  // ISO 8601.
+  // What the camera stamped on the frame, if it says: its frame counter (GigE Vision block id
+  // unwrapped, V4L2 sequence) and its timestamp in ns on the device's own clock (camera ticks
+  // since power-up, CLOCK_MONOTONIC for V4L2; not UTC). Opaque, for auditing dropped frames
+  // and timing; each must be < 2^63.
+  std::optional<uint64_t> camera_frame_id;
+  std::optional<uint64_t> camera_timestamp_ns;
   FrameStatus status = FrameStatus::kOk;
   std::string error;          // Device message when status != ok.
 };

@@ -255,6 +255,33 @@ class ManifestParser {
     return Status::Ok();
   }
 
+  // Non-negative integers below 2^63 (device counters); a float with an integral value is
+  // accepted up to 2^53, where doubles stop being exact.
+  Status Counter(const Json& object, const std::string& path, const char* key, Need need,
+                 std::optional<uint64_t>* out) const {
+    const Json* v = nullptr;
+    THINSLAB_RETURN_IF_ERROR(Find(object, path, key, need, &v));
+    if (v == nullptr) return Status::Ok();
+    const std::string field = Child(path, key);
+    constexpr uint64_t kMax = uint64_t(1) << 63;
+    if (v->is_number_unsigned()) {
+      const uint64_t u = v->get<uint64_t>();
+      if (u >= kMax) return Error(field, "integer " + std::to_string(u) + " is out of range (< 2^63)");
+      *out = u;
+      return Status::Ok();
+    }
+    if (v->is_number_integer()) {
+      return Error(field, "must be >= 0, got " + std::to_string(v->get<std::int64_t>()));
+    }
+    if (!v->is_number()) return ExpectedType(field, "an integer", *v);
+    const double d = v->get<double>();
+    if (!std::isfinite(d) || std::floor(d) != d || d < 0 || d > 9007199254740992.0) {
+      return Error(field, "expected an integer in [0, 2^53] when written as a float, got " + Num(d));
+    }
+    *out = static_cast<uint64_t>(d);
+    return Status::Ok();
+  }
+
   // A fixed-size array of numbers.
   Status Vector(const Json& object, const std::string& path, const char* key, Need need, int n,
                 double* out) const {
@@ -320,11 +347,11 @@ class ManifestParser {
   }
 
   Status Parse(const Json& root, Session* session) const;
+  Status ParseFrame(const Json& j, const std::string& path, FrameRecord* frame) const;
 
  private:
   Status ParseCamera(const Json& j, const std::string& path, CameraInfo* camera) const;
   Status ParseRig(const Json& j, const std::string& path, RigInfo* rig) const;
-  Status ParseFrame(const Json& j, const std::string& path, FrameRecord* frame) const;
   Status ParseAcquisition(const Json& j, const std::string& path, AcquisitionInfo* acquisition) const;
 
   std::string file_;
@@ -477,6 +504,8 @@ Status ManifestParser::ParseFrame(const Json& j, const std::string& path,
 
   THINSLAB_RETURN_IF_ERROR(
       String(j, path, "timestamp_utc", Need::kRequired, &frame->timestamp_utc));
+  THINSLAB_RETURN_IF_ERROR(Counter(j, path, "camera_frame_id", Need::kOptional, &frame->camera_frame_id));
+  THINSLAB_RETURN_IF_ERROR(Counter(j, path, "camera_timestamp_ns", Need::kOptional, &frame->camera_timestamp_ns));
   std::string status;
   THINSLAB_RETURN_IF_ERROR(String(j, path, "status", Need::kRequired, &status));
   if (status == "ok") {
@@ -580,6 +609,29 @@ OrderedJson RigidToJson(const Rigid3d& r) {
   return j;
 }
 
+OrderedJson FrameToJson(const FrameRecord& f) {
+  OrderedJson fj = OrderedJson::object();
+  fj["index"] = f.index;
+  fj["camera"] = f.camera_id;
+  fj["kind"] = f.kind;
+  fj["sample_state"] = f.sample_state;
+  fj["file"] = f.file;
+  fj["exposure_time_us"] = f.exposure_time_us;
+  fj["gain_db"] = f.gain_db;
+  OrderedJson light = OrderedJson::object();
+  light["projector_pattern"] = f.light.projector_pattern;
+  light["laser_on"] = f.light.laser_on;
+  if (f.light.dot_px.has_value()) light["dot_px"] = Array2(*f.light.dot_px);
+  light["dot_radiance"] = f.light.dot_radiance;
+  fj["light"] = std::move(light);
+  fj["timestamp_utc"] = f.timestamp_utc;
+  if (f.camera_frame_id.has_value()) fj["camera_frame_id"] = *f.camera_frame_id;
+  if (f.camera_timestamp_ns.has_value()) fj["camera_timestamp_ns"] = *f.camera_timestamp_ns;
+  fj["status"] = FrameStatusName(f.status);
+  fj["error"] = f.error;
+  return fj;
+}
+
 OrderedJson SessionToJson(const Session& session) {
   OrderedJson root = OrderedJson::object();
   root["format"] = kFormatName;
@@ -660,26 +712,7 @@ OrderedJson SessionToJson(const Session& session) {
   root["rig"] = std::move(rig_json);
 
   OrderedJson frames = OrderedJson::array();
-  for (const FrameRecord& f : session.frames) {
-    OrderedJson fj = OrderedJson::object();
-    fj["index"] = f.index;
-    fj["camera"] = f.camera_id;
-    fj["kind"] = f.kind;
-    fj["sample_state"] = f.sample_state;
-    fj["file"] = f.file;
-    fj["exposure_time_us"] = f.exposure_time_us;
-    fj["gain_db"] = f.gain_db;
-    OrderedJson light = OrderedJson::object();
-    light["projector_pattern"] = f.light.projector_pattern;
-    light["laser_on"] = f.light.laser_on;
-    if (f.light.dot_px.has_value()) light["dot_px"] = Array2(*f.light.dot_px);
-    light["dot_radiance"] = f.light.dot_radiance;
-    fj["light"] = std::move(light);
-    fj["timestamp_utc"] = f.timestamp_utc;
-    fj["status"] = FrameStatusName(f.status);
-    fj["error"] = f.error;
-    frames.push_back(std::move(fj));
-  }
+  for (const FrameRecord& f : session.frames) frames.push_back(FrameToJson(f));
   root["frames"] = std::move(frames);
   if (session.acquisition.present) {
     const AcquisitionInfo& acq = session.acquisition;
@@ -771,6 +804,36 @@ Status WriteSession(const std::string& session_dir, const Session& session) {
     THINSLAB_RETURN_IF_ERROR(CreateDirectories(session_dir));
   }
   return WriteFileAtomically(file, text);
+}
+
+Status FrameRecordToJson(const FrameRecord& frame, std::string* json) {
+  try {
+    const OrderedJson j = FrameToJson(frame);
+    THINSLAB_RETURN_IF_ERROR(CheckFinite(j, "frames[" + std::to_string(frame.index) + "]", "frame record"));
+    *json = j.dump(-1, ' ', false, OrderedJson::error_handler_t::replace);
+  } catch (const std::exception& e) {
+    return Status::Error("frame record " + std::to_string(frame.index) + ": cannot encode JSON: " + e.what());
+  }
+  return Status::Ok();
+}
+
+Status ParseFrameRecordJson(const std::string& json, const std::string& where, FrameRecord* frame) {
+  Json j;
+  try {
+    j = Json::parse(json);
+  } catch (const Json::parse_error& e) {
+    return Status::Error(where + ": malformed JSON at byte " + std::to_string(e.byte) + ": " + e.what());
+  } catch (const std::exception& e) {
+    return Status::Error(where + ": cannot parse JSON: " + e.what());
+  }
+  FrameRecord parsed;
+  try {
+    THINSLAB_RETURN_IF_ERROR(ManifestParser(where).ParseFrame(j, "frame", &parsed));
+  } catch (const std::exception& e) {
+    return Status::Error(where + ": unexpected error while reading: " + e.what());
+  }
+  *frame = std::move(parsed);
+  return Status::Ok();
 }
 
 Status ValidateSession(const Session& session, const std::string& session_dir) {
@@ -968,6 +1031,13 @@ Status ValidateSession(const Session& session, const std::string& session_dir) {
     }
     if (!std::isfinite(f.light.dot_radiance))
       return error(p + ".light.dot_radiance", "must be finite");
+    constexpr uint64_t kCounterLimit = uint64_t(1) << 63;
+    if (f.camera_frame_id.value_or(0) >= kCounterLimit) {
+      return error(p + ".camera_frame_id", "must be < 2^63, got " + std::to_string(*f.camera_frame_id));
+    }
+    if (f.camera_timestamp_ns.value_or(0) >= kCounterLimit) {
+      return error(p + ".camera_timestamp_ns", "must be < 2^63, got " + std::to_string(*f.camera_timestamp_ns));
+    }
     if (f.status == FrameStatus::kFailed) continue;
     if (!(f.exposure_time_us > 0) || !std::isfinite(f.exposure_time_us)) {
       return error(p + ".exposure_time_us", "must be > 0, got " + Num(f.exposure_time_us));

@@ -19,6 +19,10 @@ Status WriteSession(const std::string& session_dir, const Session& session);
 // Semantic checks: known major version, positive intrinsics, unique frame indices, frames
 // naming known cameras, ok frames having an existing file inside the folder.
 Status ValidateSession(const Session& session, const std::string& session_dir);
+// One frames[k] object (docs/format.md 2.4) as single-line JSON, and back (the acquisition
+// journal stores frame records so). Parse errors start with `where`, e.g. "s/journal.log:12".
+Status FrameRecordToJson(const FrameRecord& frame, std::string* json);
+Status ParseFrameRecordJson(const std::string& json, const std::string& where, FrameRecord* frame);
 // Human summary for `thinslab info`.
 std::string SummarizeSession(const Session& session);
 

@@ -17,6 +17,7 @@
 
 #include "core/exr_io.h"
 #include "core/file.h"
+#include "tests/testing/frame_record_matchers.h"
 
 namespace thinslab {
 namespace {
@@ -112,6 +113,8 @@ Session MakeFullSession() {
   shadow.gain_db = 3.5;
   shadow.light.projector_pattern = "flat";
   shadow.timestamp_utc = "2024-05-01T12:00:01.250Z";
+  shadow.camera_frame_id = 41;
+  shadow.camera_timestamp_ns = (uint64_t(1) << 62) + 12345;  // Exact beyond the 2^53 of a double.
   s.frames.push_back(shadow);
 
   FrameRecord reference = shadow;
@@ -121,6 +124,8 @@ Session MakeFullSession() {
   reference.file = "frames/cam0/reference/1.png";
   reference.status = FrameStatus::kRetried;
   reference.error = "timeout, retried once";
+  reference.camera_frame_id = 43;
+  reference.camera_timestamp_ns.reset();  // A camera may give an id without a timestamp.
   s.frames.push_back(reference);
 
   FrameRecord dark = shadow;
@@ -130,6 +135,8 @@ Session MakeFullSession() {
   dark.sample_state = "none";
   dark.file = "frames/cam1/dark/2.png";
   dark.light.projector_pattern = "";
+  dark.camera_frame_id.reset();  // Neither (an imported capture).
+  dark.camera_timestamp_ns.reset();
   s.frames.push_back(dark);
 
   FrameRecord dot = shadow;
@@ -227,23 +234,7 @@ void ExpectSessionsEqual(const Session& a, const Session& b) {
     SCOPED_TRACE("frame " + std::to_string(i));
     const FrameRecord& fa = a.frames[i];
     const FrameRecord& fb = b.frames[i];
-    EXPECT_EQ(fa.index, fb.index);
-    EXPECT_EQ(fa.camera_id, fb.camera_id);
-    EXPECT_EQ(fa.kind, fb.kind);
-    EXPECT_EQ(fa.sample_state, fb.sample_state);
-    EXPECT_EQ(fa.file, fb.file);
-    EXPECT_EQ(fa.exposure_time_us, fb.exposure_time_us);
-    EXPECT_EQ(fa.gain_db, fb.gain_db);
-    EXPECT_EQ(fa.light.projector_pattern, fb.light.projector_pattern);
-    EXPECT_EQ(fa.light.laser_on, fb.light.laser_on);
-    EXPECT_EQ(fa.light.dot_px.has_value(), fb.light.dot_px.has_value());
-    if (fa.light.dot_px && fb.light.dot_px) {
-      EXPECT_EQ(*fa.light.dot_px, *fb.light.dot_px);
-    }
-    EXPECT_EQ(fa.light.dot_radiance, fb.light.dot_radiance);
-    EXPECT_EQ(fa.timestamp_utc, fb.timestamp_utc);
-    EXPECT_EQ(fa.status, fb.status);
-    EXPECT_EQ(fa.error, fb.error);
+    ExpectSameFrame(fa, fb);
   }
 }
 
@@ -301,7 +292,7 @@ TEST_F(SessionIoTest, WritesTheDocumentedLayout) {
   ASSERT_TRUE(ReadFileToString(manifest(), &text).ok());
   const nlohmann::json j = nlohmann::json::parse(text);
   EXPECT_EQ(j["format"], "thinslab-session");
-  EXPECT_EQ(j["format_version"], "1.1");
+  EXPECT_EQ(j["format_version"], "1.2");
   EXPECT_EQ(j["rig"]["cameras"][0]["cam_from_sample"]["rotation_wxyz"].size(), 4u);
   EXPECT_EQ(j["rig"]["cameras"][0]["cam_from_sample"]["translation_m"].size(), 3u);
   EXPECT_EQ(j["frames"][0]["camera"], "cam0");
@@ -309,6 +300,70 @@ TEST_F(SessionIoTest, WritesTheDocumentedLayout) {
   EXPECT_FALSE(j["frames"][0]["light"].contains("dot_px"));
   EXPECT_EQ(j["frames"][3]["light"]["dot_px"].size(), 2u);
   EXPECT_EQ(j["frames"][4]["status"], "failed");
+  EXPECT_EQ(j["frames"][0]["camera_frame_id"], 41u);
+  EXPECT_EQ(j["frames"][0]["camera_timestamp_ns"].get<uint64_t>(), (uint64_t(1) << 62) + 12345);
+  EXPECT_EQ(j["frames"][1]["camera_frame_id"], 43u);
+  EXPECT_FALSE(j["frames"][1].contains("camera_timestamp_ns"));  // Optional: absent when unknown.
+  EXPECT_FALSE(j["frames"][2].contains("camera_frame_id"));
+}
+
+TEST_F(SessionIoTest, CameraFrameIdsMustBeNonNegativeIntegersBelow2To63) {
+  // Each edit starts from the written session.
+  auto read_with = [this](const std::function<void(nlohmann::json*)>& edit) {
+    EXPECT_TRUE(WriteSession(dir_, session_).ok());
+    return ReadEdited(edit).message();
+  };
+  EXPECT_THAT(read_with([](nlohmann::json* j) { (*j)["frames"][0]["camera_frame_id"] = -1; }),
+              HasSubstr("frames[0].camera_frame_id: must be >= 0, got -1"));
+  EXPECT_THAT(read_with([](nlohmann::json* j) { (*j)["frames"][0]["camera_frame_id"] = 4.5; }),
+              HasSubstr("frames[0].camera_frame_id: expected an integer in [0, 2^53] when written as a float"));
+  EXPECT_THAT(read_with([](nlohmann::json* j) { (*j)["frames"][1]["camera_timestamp_ns"] = "12"; }),
+              HasSubstr("frames[1].camera_timestamp_ns: expected an integer, got string"));
+  EXPECT_THAT(read_with([](nlohmann::json* j) { (*j)["frames"][0]["camera_timestamp_ns"] = uint64_t(1) << 63; }),
+              HasSubstr("frames[0].camera_timestamp_ns: integer 9223372036854775808 is out of range (< 2^63)"));
+  // 7.0 is an integer; null is absent.
+  EXPECT_EQ(read_with([](nlohmann::json* j) {
+              (*j)["frames"][0]["camera_frame_id"] = 7.0;
+              (*j)["frames"][1]["camera_frame_id"] = nullptr;
+            }),
+            "");
+  // The writer's validation refuses what the reader would.
+  session_.frames[0].camera_frame_id = uint64_t(1) << 63;
+  EXPECT_THAT(ValidateSession(session_, dir_).message(), HasSubstr("frames[0].camera_frame_id: must be < 2^63"));
+}
+
+TEST(FrameRecordJson, RoundTripKeepsTheCameraStampsAndNamesTheLine) {
+  FrameRecord f;
+  f.index = 7;
+  f.camera_id = "cam0";
+  f.kind = "dot";
+  f.file = "frames/cam0/dot/0007.png";
+  f.exposure_time_us = 33333.3;
+  f.light.dot_px = Eigen::Vector2d(10.5, 20.5);
+  f.timestamp_utc = "2026-12-02T00:00:00.000Z";
+  f.camera_frame_id = 65536;
+  f.camera_timestamp_ns = 1234567890123456789ull;
+  f.status = FrameStatus::kRetried;
+  f.error = "line\nbreak";
+  std::string json;
+  ASSERT_TRUE(FrameRecordToJson(f, &json).ok());
+  EXPECT_EQ(json.find('\n'), std::string::npos) << "a journal record must be one line: " << json;
+  FrameRecord back;
+  ASSERT_TRUE(ParseFrameRecordJson(json, "j.log:3", &back).ok());
+  EXPECT_EQ(back.index, 7);
+  EXPECT_EQ(back.file, f.file);
+  EXPECT_EQ(back.exposure_time_us, f.exposure_time_us);
+  EXPECT_EQ(*back.light.dot_px, *f.light.dot_px);
+  EXPECT_EQ(back.camera_frame_id, f.camera_frame_id);
+  EXPECT_EQ(back.camera_timestamp_ns, f.camera_timestamp_ns);
+  EXPECT_EQ(back.status, FrameStatus::kRetried);
+  EXPECT_EQ(back.error, f.error);
+  EXPECT_THAT(ParseFrameRecordJson("{\"index\": 1", "j.log:4", &back).message(), HasSubstr("j.log:4: malformed JSON"));
+  EXPECT_THAT(ParseFrameRecordJson(R"({"index": 1, "camera": "cam0", "kind": "dot", "file": "", "exposure_time_us": 1,
+                                       "timestamp_utc": "", "status": "ok", "camera_frame_id": -3})",
+                                   "j.log:5", &back)
+                  .message(),
+              HasSubstr("j.log:5: frame.camera_frame_id: must be >= 0, got -3"));
 }
 
 TEST_F(SessionIoTest, OptionalDevicesAbsentAreNotWritten) {

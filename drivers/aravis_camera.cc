@@ -596,8 +596,11 @@ Status AravisCamera::Capture(CapturedFrame* frame) {
   frame->raw_dn = std::move(image);
   frame->exposure_time_us = exposure_us_;
   frame->frame_id = frame_id;
-  // The host's clock when the frame arrived: the device timestamp counts camera ticks since its
-  // power-up, not UTC.
+  // The device timestamp counts camera ticks since its power-up (Aravis converts them to ns),
+  // not UTC: it is recorded as is, and the host's clock when the frame arrived gives the UTC
+  // time. 0 means the camera gave none.
+  const uint64_t device_ns = arv_buffer_get_timestamp(buffer);
+  if (device_ns != 0) frame->device_timestamp_ns = device_ns;
   frame->timestamp_utc = IsoUtcFromNs(system_ns != 0 ? system_ns : NowNs());
   counters_["frames_captured"] += 1;
   return Status::Ok();

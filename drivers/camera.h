@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "core/image.h"
@@ -16,8 +17,12 @@ namespace thinslab {
 struct CapturedFrame {
   Image raw_dn;                   // Single channel, raw digital numbers (black level included).
   double exposure_time_us = 0;    // Exposure the device reports having applied.
-  uint64_t frame_id = 0;          // Device frame counter.
-  std::string timestamp_utc;      // ISO 8601.
+  std::string timestamp_utc;      // ISO 8601, host clock.
+  // What the device stamped on the frame, if it does (FrameRecord::camera_frame_id and
+  // camera_timestamp_ns in the manifest): its frame counter, and its timestamp in ns on its own
+  // clock (not UTC).
+  std::optional<uint64_t> frame_id;
+  std::optional<uint64_t> device_timestamp_ns;
 };
 
 class Camera {

@@ -412,6 +412,11 @@ Status V4l2Camera::Capture(CapturedFrame* frame) {
   frame->raw_dn = std::move(raw);
   frame->exposure_time_us = exposure_us_;
   frame->frame_id = buf.sequence;
+  // The driver's buffer timestamp (CLOCK_MONOTONIC for most drivers, see the flags), as is.
+  if (buf.timestamp.tv_sec > 0 || buf.timestamp.tv_usec > 0) {
+    frame->device_timestamp_ns =
+        uint64_t(buf.timestamp.tv_sec) * 1000000000ull + uint64_t(buf.timestamp.tv_usec) * 1000ull;
+  }
   frame->timestamp_utc = TimestampUtc(buf.timestamp, monotonic);
   return Xioctl(VIDIOC_QBUF, &buf, "VIDIOC_QBUF");
 }

@@ -250,15 +250,18 @@ TEST(V4l2CameraTest, NegotiatesDeepestMonoFormatAndStreams) {
     const Status c = cam->Capture(&frame);
     ASSERT_TRUE(c.ok()) << c.message();
     ASSERT_EQ(frame.raw_dn.width(), 40);
-    ids.push_back(frame.frame_id);
+    ASSERT_TRUE(frame.frame_id.has_value());
+    ids.push_back(*frame.frame_id);
     // Every pixel, across the padded stride and little-endian 16-bit words.
     for (int y = 0; y < 30; y += 7) {
       for (int x = 0; x < 40; x += 3) {
-        ASSERT_EQ(frame.raw_dn.at(x, y), FakeV4l2Device::Pixel(x, y, uint32_t(frame.frame_id)));
+        ASSERT_EQ(frame.raw_dn.at(x, y), FakeV4l2Device::Pixel(x, y, uint32_t(*frame.frame_id)));
       }
     }
     EXPECT_EQ(frame.timestamp_utc.size(), 27u);
     EXPECT_EQ(frame.timestamp_utc.back(), 'Z');
+    // The driver's timestamp, as is (the fake stamps 1000 + sequence s).
+    EXPECT_EQ(frame.device_timestamp_ns, (1000 + *frame.frame_id) * 1000000000ull);
     EXPECT_EQ(dev->queued.size(), 3u);  // Buffer handed back after every frame.
   }
   EXPECT_EQ(ids, (std::vector<uint64_t>{0, 1, 2, 5, 7, 8, 9, 10}));

@@ -141,6 +141,7 @@ Status SynthesizeBracketSession(const BracketSimOptions& options, const std::str
   for (size_t k = 0; k < bracket.darks.size(); ++k) {
     THINSLAB_RETURN_IF_ERROR(add(bracket.darks[k], bracket.dark_exposures_us[k], "dark"));
   }
+  THINSLAB_RETURN_IF_ERROR(writer.Save());
   const std::string truth_dir = JoinPath(session_dir, "ground_truth");
   THINSLAB_RETURN_IF_ERROR(CreateDirectories(truth_dir));
   THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(truth_dir, "scene.exr"), bracket.scene_e_per_us));

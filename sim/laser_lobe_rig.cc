@@ -175,8 +175,11 @@ Status SynthesizeLaserLobeSession(const SyntheticLaserSessionOptions& options, c
   THINSLAB_RETURN_IF_ERROR(SimLaserLobeRig::Create(options.rig, &rig));
   SessionWriter writer;
   THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "laser_lobe", rig->rig_info(), &writer));
-  THINSLAB_RETURN_IF_ERROR(RunLaserLobeSession(options.session, rig->camera(), rig->laser(), rig->flat_source(),
+  LaserLobeSessionOptions session = options.session;
+  session.sync = SyncForSensor(session.sync, options.rig.sensor);
+  THINSLAB_RETURN_IF_ERROR(RunLaserLobeSession(session, rig->camera(), rig->laser(), rig->flat_source(),
                                                rig->sample_changer(), &writer));
+  THINSLAB_RETURN_IF_ERROR(writer.Save());
   const std::string truth_dir = JoinPath(session_dir, "ground_truth");
   THINSLAB_RETURN_IF_ERROR(CreateDirectories(truth_dir));
   nlohmann::json j;

@@ -48,9 +48,16 @@ Status SimBoardCamera::Capture(CapturedFrame* frame) {
   frame->raw_dn = ApplySensor(RenderElectrons(), options_.sensor,
                               options_.seed * 1000003ULL + frame_counter_ * 7919ULL + 17);
   frame->exposure_time_us = exposure_us_;
-  frame->frame_id = frame_counter_++;
-  frame->timestamp_utc = UtcTimestampNow();
+  StampCapture(exposure_us_, &frame_counter_, &clock_ns_, frame);
   return Status::Ok();
+}
+
+void SimBoardCamera::StampCapture(double exposure_us, uint64_t* frame_counter, uint64_t* clock_ns,
+                                  CapturedFrame* frame) {
+  frame->frame_id = (*frame_counter)++;
+  frame->device_timestamp_ns = *clock_ns;
+  *clock_ns += static_cast<uint64_t>(std::llround(exposure_us * 1e3));
+  frame->timestamp_utc = UtcTimestampNow();
 }
 
 Image SimBoardCamera::RenderElectrons() const {

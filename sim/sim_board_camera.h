@@ -47,12 +47,18 @@ class SimBoardCamera : public Camera {
   // uninterrupted run's (thinslab acquire --resume).
   void set_frame_counter(uint64_t captures) { frame_counter_ = captures; }
 
+  // Stamps a simulated capture as a camera does: frame id = captures so far (then counts it),
+  // device timestamp = start of the exposure on a clock that starts at 0 when the camera is
+  // created and runs for the exposure of every capture.
+  static void StampCapture(double exposure_us, uint64_t* frame_counter, uint64_t* clock_ns, CapturedFrame* frame);
+
  private:
   SimBoardCameraOptions options_;
   CameraInfo info_;
   IrradianceFn irradiance_;
   double exposure_us_;
   uint64_t frame_counter_ = 0;
+  uint64_t clock_ns_ = 0;
 };
 
 }  // namespace thinslab

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "acquire/session_writer.h"
 #include "core/camera_model.h"
 #include "core/math.h"
 #include "drivers/pattern_id.h"
@@ -33,8 +32,7 @@ class SimDotMonitor::SimCamera : public Camera {
     frame->raw_dn = ApplySensor(BlurGaussian(rig_->RenderElectrons(), o.blur_sigma_px), o.sensor,
                                 o.seed * 1000003ULL + frame_counter_ * 7919ULL + 29);
     frame->exposure_time_us = exposure_us_;
-    frame->frame_id = frame_counter_++;
-    frame->timestamp_utc = UtcTimestampNow();
+    SimBoardCamera::StampCapture(exposure_us_, &frame_counter_, &clock_ns_, frame);
     return Status::Ok();
   }
   double exposure_us() const { return exposure_us_; }
@@ -44,6 +42,7 @@ class SimDotMonitor::SimCamera : public Camera {
   CameraInfo info_;
   double exposure_us_;
   uint64_t frame_counter_ = 0;
+  uint64_t clock_ns_ = 0;
 };
 
 Status SimDotMonitorOptions::Check() const {

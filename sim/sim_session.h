@@ -3,12 +3,15 @@
 // appends to or overwrites a capture) and opens a SessionWriter with the rig description.
 #pragma once
 
+#include <algorithm>
 #include <filesystem>
 #include <string>
 
+#include "acquire/display_sync.h"
 #include "acquire/session_writer.h"
 #include "core/session.h"
 #include "core/version.h"
+#include "sim/sensor_model.h"
 
 namespace thinslab {
 
@@ -24,6 +27,14 @@ inline Status OpenSimulatedSession(const std::string& session_dir, const std::st
   header.software = std::string("thinslab ") + THINSLAB_VERSION_STRING + " sim (" + THINSLAB_GIT_HASH + ")";
   header.rig = rig;
   return writer->Open(session_dir, header);
+}
+
+// The display-camera synchronisation's noise model for a simulated sensor: its read noise in DN,
+// if above the option's (DisplaySyncOptions assumes a low-noise camera). Without it, two frames
+// of the same state of a very noisy sensor would never agree and a settle never be confirmed.
+inline DisplaySyncOptions SyncForSensor(DisplaySyncOptions sync, const SimSensorOptions& sensor) {
+  if (sensor.enable_noise) sync.read_noise_dn = std::max(sync.read_noise_dn, sensor.read_noise_e / sensor.gain_e_per_dn());
+  return sync;
 }
 
 }  // namespace thinslab

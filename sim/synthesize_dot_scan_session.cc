@@ -93,6 +93,7 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
   rig.sample.pixel_pitch_m = options.truth_pitch_m;
   rig.sample.glass_ior = so.regions.front().material.eta;
   DotScanSessionOptions session = options.session;
+  session.sync = SyncForSensor(session.sync, options.rig.sensor);
   session.monitor_width_px = options.rig.monitor_width_px;
   session.monitor_height_px = options.rig.monitor_height_px;
 
@@ -101,6 +102,7 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
   THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "dot_scan", rig, &writer));
   THINSLAB_RETURN_IF_ERROR(
       RunDotScanSession(session, monitor->camera(), monitor.get(), monitor->sample_changer(), &writer));
+  THINSLAB_RETURN_IF_ERROR(writer.Save());
   const double acquisition_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   // Ground truth.
