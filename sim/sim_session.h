@@ -29,11 +29,17 @@ inline Status OpenSimulatedSession(const std::string& session_dir, const std::st
   return writer->Open(session_dir, header);
 }
 
-// The display-camera synchronisation's noise model for a simulated sensor: its read noise in DN,
-// if above the option's (DisplaySyncOptions assumes a low-noise camera). Without it, two frames
-// of the same state of a very noisy sensor would never agree and a settle never be confirmed.
+// The display-camera synchronisation's noise model for a simulated sensor: its read noise in DN
+// as the response curve passes it at black (a gamma-like curve amplifies it there several
+// times), if above the option's (DisplaySyncOptions assumes a low-noise linear camera). Without
+// it, two frames of the same state of a very noisy sensor would never agree and a settle never
+// be confirmed.
 inline DisplaySyncOptions SyncForSensor(DisplaySyncOptions sync, const SimSensorOptions& sensor) {
-  if (sensor.enable_noise) sync.read_noise_dn = std::max(sync.read_noise_dn, sensor.read_noise_e / sensor.gain_e_per_dn());
+  if (!sensor.enable_noise) return sync;
+  const double sigma = sensor.read_noise_e / sensor.full_well_e;  // Fraction of full scale.
+  const double full_scale_dn = sensor.saturation_dn() - sensor.black_level_dn;
+  const double read_noise_dn = 0.5 * (sensor.ResponseCurve(sigma) - sensor.ResponseCurve(-sigma)) * full_scale_dn;
+  sync.read_noise_dn = std::max(sync.read_noise_dn, read_noise_dn);
   return sync;
 }
 

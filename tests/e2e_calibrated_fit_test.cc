@@ -134,7 +134,8 @@ TEST(CalibratedFit, ResponseFromBracketLinearisesShadowMaps) {
   sim.rig.sensor.response = SimResponseCurve::kGamma;
   sim.rig.sensor.response_gamma = 1.8;
   const std::string session = dir / "session";
-  ASSERT_TRUE(SynthesizeShadowMapSession(sim, Patches(), session).ok());
+  const Status synthesized = SynthesizeShadowMapSession(sim, Patches(), session);
+  ASSERT_TRUE(synthesized.ok()) << synthesized.message();
   BracketSimOptions bracket;
   bracket.sensor = sim.rig.sensor;
   bracket.dark_frames_per_exposure = 1;
