@@ -17,6 +17,7 @@
 
 #include "core/file.h"
 #include "core/session_io.h"
+#include "core/session_recovery.h"
 
 namespace thinslab {
 
@@ -53,29 +54,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A frame line of journal.log: "<time> frame <index> <status> captures=<n> discarded=<m> <json>",
-// <json> the frames[k] object of docs/format.md 2.4; the counters are the session's
-// acquisition.camera_captures and discarded_frames once the frame was recorded.
-std::string JournalFrameText(const FrameRecord& record, const AcquisitionInfo& acquisition, const std::string& json) {
-  return "frame " + std::to_string(record.index) + " " + FrameStatusName(record.status) +
-         " captures=" + std::to_string(acquisition.camera_captures) +
-         " discarded=" + std::to_string(acquisition.discarded_frames) + " " + json;
-}
-
-// Parses a frame line; false if the line is not one (an event line, or a line of the audit-only
-// journal that older versions wrote).
-bool ParseJournalFrameLine(const std::string& line, int* captures, int* discarded, std::string* json) {
-  int index = 0, consumed = -1;
-  char status[16];
-  if (std::sscanf(line.c_str(), "%*s frame %d %15s captures=%d discarded=%d %n", &index, status, captures,
-                  discarded, &consumed) != 4 ||
-      consumed < 0) {
-    return false;
-  }
-  *json = line.substr(static_cast<size_t>(consumed));
-  return true;
-}
-
 Status WriteAll(int fd, const std::string& text, const std::string& path) {
   size_t written = 0;
   while (written < text.size()) {
@@ -105,48 +83,6 @@ Status DropIncompleteLastLine(const std::string& path) {
 }
 
 }  // namespace
-
-Status ReadSessionWithJournal(const std::string& session_dir, Session* session, int* journaled_frames) {
-  if (journaled_frames != nullptr) *journaled_frames = 0;
-  Session s;
-  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &s));
-  const std::string path = JoinPath(session_dir, kSessionJournalName);
-  int added = 0;
-  if (FileExists(path)) {
-    std::string bytes;
-    THINSLAB_RETURN_IF_ERROR(ReadFileToString(path, &bytes));
-    size_t begin = 0;
-    for (int line_number = 1;; ++line_number) {
-      const size_t end = bytes.find('\n', begin);
-      if (end == std::string::npos) break;  // No line, or the last one cut short by a kill.
-      const std::string line = bytes.substr(begin, end - begin);
-      begin = end + 1;
-      int captures = 0, discarded = 0;
-      std::string json;
-      if (!ParseJournalFrameLine(line, &captures, &discarded, &json)) continue;
-      const std::string where = path + ":" + std::to_string(line_number);
-      FrameRecord record;
-      THINSLAB_RETURN_IF_ERROR(ParseFrameRecordJson(json, where, &record));
-      const int next = static_cast<int>(s.frames.size());
-      if (record.index < next) continue;  // The manifest has it already.
-      if (record.index > next) {
-        return Status::Error(where + ": frame record " + std::to_string(record.index) + " follows frame " +
-                             std::to_string(next - 1) + ": records are missing");
-      }
-      s.frames.push_back(std::move(record));
-      s.acquisition.camera_captures = std::max(s.acquisition.camera_captures, captures);
-      s.acquisition.discarded_frames = std::max(s.acquisition.discarded_frames, discarded);
-      ++added;
-    }
-  }
-  if (added > 0) {
-    THINSLAB_RETURN_IF_ERROR(ValidateSession(s, session_dir)
-                                 .WithContext("with the " + std::to_string(added) + " frames journaled in " + path));
-  }
-  if (journaled_frames != nullptr) *journaled_frames = added;
-  *session = std::move(s);
-  return Status::Ok();
-}
 
 SessionWriter::~SessionWriter() {
   if (journal_fd_ >= 0) ::close(journal_fd_);

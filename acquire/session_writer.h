@@ -20,11 +20,10 @@
 
 #include "core/image.h"
 #include "core/session.h"
+#include "core/session_recovery.h"
 #include "core/status.h"
 
 namespace thinslab {
-
-constexpr char kSessionJournalName[] = "journal.log";
 
 struct SessionWriterOptions {
   // Append every frame record to journal.log (fsync'd) after its file: what makes frames
@@ -116,14 +115,6 @@ class SessionWriter {
   std::function<void()> observer_;
   std::function<std::string()> stop_check_;
 };
-
-// The session as the writer would resume it: session.json plus the frame records journal.log
-// holds beyond it (and the capture counters of the last of them). Journal lines that are not
-// frame records, records the manifest already has, and a last line cut short by a kill are
-// skipped; a malformed record line or a gap in the indices is an error naming
-// journal.log:<line>. The result is validated like ReadSession's. *journaled_frames, if given,
-// receives how many frames came from the journal.
-Status ReadSessionWithJournal(const std::string& session_dir, Session* session, int* journaled_frames = nullptr);
 
 std::string UtcTimestampNow();
 

@@ -12,6 +12,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "app/capture_options.h"
 #include "app/commands.h"
 #include "app/option_parser.h"
 #include "calib/camera_calibration.h"
@@ -209,6 +210,8 @@ int RunCalibPose(int argc, char** argv) {
   parser.AddString("board-offset-mm", &offset_text, "x,y,z of inner corner (0,0) in the sample frame [mm]");
   parser.AddString("kind", &kind, "frame kind holding the target");
   parser.AddString("rig", &rig_path, "rig.json with the camera intrinsics (default SESSION/calib/rig.json)");
+  bool allow_incomplete = false;
+  AddIncompleteCaptureOption(&parser, &allow_incomplete);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
@@ -226,7 +229,7 @@ int RunCalibPose(int argc, char** argv) {
     }
     sample_from_board.translation = Eigen::Vector3d(ox, oy, oz) * 1e-3;
     Session session;
-    THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
+    THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete, &session));
     const std::vector<const FrameRecord*> frames = session.UsableFrames(kind);
     if (frames.empty()) {
       return Status::Error(JoinPath(session_dir, kSessionManifestName) + ": frames: no usable frame of kind '" + kind +
@@ -297,6 +300,8 @@ int RunCalibDots(int argc, char** argv) {
   parser.AddString("response", &response_path,
                    "response.json that linearises the frames, or 'linear' (default SESSION/calib/response.json if "
                    "present)");
+  bool allow_incomplete = false;
+  AddIncompleteCaptureOption(&parser, &allow_incomplete);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
@@ -305,7 +310,7 @@ int RunCalibDots(int argc, char** argv) {
   auto run = [&]() -> Status {
     THINSLAB_RETURN_IF_ERROR(status);
     Session session;
-    THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
+    THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete, &session));
     const std::string manifest = JoinPath(session_dir, kSessionManifestName);
     if (!session.rig.monitor.present) return Status::Error(manifest + ": rig.monitor: missing (the dot monitor geometry)");
     std::vector<const FrameRecord*> frames = session.UsableFrames(kind, "none");

@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include "app/capture_options.h"
 #include "app/commands.h"
 #include "app/option_parser.h"
 #include "calib/flat_field.h"
@@ -120,6 +121,8 @@ int RunCalibResponse(int argc, char** argv) {
   parser.AddInt("min-exposures", &options.min_exposures, "fewest distinct exposures accepted (>= 2)");
   parser.AddUint64("seed", &options.seed, "seed of the pixel sample");
   parser.AddString("out", &out, "output file (default SESSION/calib/response.json)");
+  bool allow_incomplete = false;
+  AddIncompleteCaptureOption(&parser, &allow_incomplete);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
@@ -134,7 +137,7 @@ int RunCalibResponse(int argc, char** argv) {
     return Fail(Status::Error("--method " + method + ": expected debevec or robertson"));
   }
   Session session;
-  status = ReadSession(session_dir, &session);
+  status = ReadCaptureForCommand(session_dir, allow_incomplete, &session);
   if (!status.ok()) return Fail(status);
   const CameraInfo* camera = nullptr;
   status = FindCamera(session_dir, session, camera_id, &camera);
@@ -216,6 +219,8 @@ int RunCalibHdr(int argc, char** argv) {
   parser.AddDouble("read-noise-dn", &read_noise_dn, "read noise when the session has no dark frames [DN]");
   parser.AddInt("threads", &options.num_threads, "threads");
   parser.AddString("out", &out, "output folder (default SESSION/calib/hdr)");
+  bool allow_incomplete = false;
+  AddIncompleteCaptureOption(&parser, &allow_incomplete);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
@@ -233,7 +238,7 @@ int RunCalibHdr(int argc, char** argv) {
     return Fail(Status::Error("--weighting " + weighting + ": expected inverse-variance, hat or debevec"));
   }
   Session session;
-  status = ReadSession(session_dir, &session);
+  status = ReadCaptureForCommand(session_dir, allow_incomplete, &session);
   if (!status.ok()) return Fail(status);
   const CameraInfo* camera = nullptr;
   status = FindCamera(session_dir, session, camera_id, &camera);
@@ -310,6 +315,8 @@ int RunCalibFlat(int argc, char** argv) {
   parser.AddDouble("sigma-px", &options.smoothing_sigma_px, "Gaussian smoothing sigma [camera px]; 0 = none");
   parser.AddDouble("min-relative", &options.min_relative, "pixels below this fraction of the median are invalid");
   parser.AddString("out", &out, "output file (default SESSION/calib/flat_field.exr)");
+  bool allow_incomplete = false;
+  AddIncompleteCaptureOption(&parser, &allow_incomplete);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
@@ -317,7 +324,7 @@ int RunCalibFlat(int argc, char** argv) {
   }
   if (!status.ok()) return Fail(status);
   Session session;
-  status = ReadSession(session_dir, &session);
+  status = ReadCaptureForCommand(session_dir, allow_incomplete, &session);
   if (!status.ok()) return Fail(status);
   if (session.rig.cameras.empty()) return Fail(Status::Error(session_dir + ": rig.cameras: no camera"));
   CameraResponse response;

@@ -47,6 +47,7 @@ struct FitTauRun {
   // A `fit phase` output folder whose choice sets fit.layer_g and fit.refine_scattering
   // (app/layer_from_phase.h); "" = the options as given.
   std::string phase_dir;
+  bool allow_incomplete_capture = false;  // --allow-incomplete (app/capture_options.h).
   std::string options_ini;      // Effective options, written as options.ini.
 };
 Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,
@@ -54,8 +55,10 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
 
 // `fit phase`: reads a laser-lobe session, fits Gu Eq. 8 and writes <out_dir>/{summary.json,
 // summary.txt, rings.csv, lobe_plot.png, options.ini} atomically.
+// allow_incomplete_capture: --allow-incomplete (app/capture_options.h).
 Status FitPhasePipeline(const std::string& session_dir, const std::string& out_dir, const PhaseFitOptions& options,
-                        const LaserLobePreparationOptions& preparation, const std::string& options_ini, PhaseFitSummary* summary,
+                        const LaserLobePreparationOptions& preparation, bool allow_incomplete_capture,
+                        const std::string& options_ini, PhaseFitSummary* summary,
                         std::vector<LaserRing>* rings, LaserLadderResult* ladder = nullptr);
 
 // Adds the sim rig and session options to a parser (used by `sim shadow-maps` and `demo`).

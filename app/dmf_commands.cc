@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "app/calibration_options.h"
+#include "app/capture_options.h"
 #include "app/commands.h"
 #include "app/option_parser.h"
 #include "core/exr_io.h"
@@ -58,6 +59,7 @@ struct DmfRun {
   std::string ndf_pixels;
   bool ladder = false;  // Issue #8 rungs per point (needs held-out dots).
   int ladder_tile = 4;  // Grid points per side of the tiles whose points decide together.
+  bool allow_incomplete_capture = false;  // --allow-incomplete (app/capture_options.h).
   std::string options_ini;
 };
 
@@ -149,7 +151,9 @@ Status RunLadder(const DmfSliceSet& slices, const DmfMaps& maps, const DmfMapFit
 
 Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir, DmfRun run, std::string* brief) {
   Session session;
-  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
+  THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, run.allow_incomplete_capture, &session));
+  run.processing.incomplete_capture =
+      run.allow_incomplete_capture ? IncompleteCapture::kAccept : IncompleteCapture::kRefuse;
   run.fit.point.eta = run.eta > 0 ? run.eta : session.rig.sample.glass_ior;
   run.fit.cluster = run.cluster_fraction > 0;
   run.fit.clustering.fraction = run.cluster_fraction > 0 ? run.cluster_fraction : 1;
@@ -305,6 +309,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
   j["dot_geometry_source"] = processing.dot_geometry_source;
   j["calibration"] = CalibrationSummaryJson(processing.calibration);
+  j["capture"] = CaptureSummaryJson(processing.capture);
   j["slice_memory_bytes"] = processing.slice_bytes;
   j["peak_memory_mib"] = PeakResidentMemoryMiB();
   j["timings_s"] = {{"dot_geometry", processing.geometry_s},
@@ -392,6 +397,7 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddDouble("dot-radius-px", &run.processing.dot_radius_px,
                    "radius of a displayed dot [monitor px] (rig.json's when it holds the dot calibration)");
   AddCalibrationOptions(&parser, &run.processing.calibration);
+  AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
   parser.AddInt("threads", &run.fit.num_threads, "threads");
   parser.AddInt("atlas-stride", &run.atlas_stride, "NDF atlas keeps every n-th point; 0 = at most 64 x 64 tiles");
   parser.AddString("ndf-pixels", &run.ndf_pixels, "points for NDF pictures, '<col>,<row>;...'");

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "app/calibration_options.h"
+#include "app/capture_options.h"
 #include "app/commands.h"
 #include "app/layer_from_phase.h"
 #include "app/option_parser.h"
@@ -28,8 +29,8 @@ std::string RigidToJson(const Rigid3d& t) {
 
 std::string PointToJson(const Eigen::Vector2d& p) { return nlohmann::json({p.x(), p.y()}).dump(); }
 
-std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, const TauFitOptions& fit,
-                        const PhaseLayerChoice* phase, double color_max) {
+std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, const CaptureCompleteness& capture,
+                        const TauFitOptions& fit, const PhaseLayerChoice* phase, double color_max) {
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
   j["format_version"] = "1.0";
@@ -47,6 +48,7 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
   SessionCalibration applied = data.calibration;
   if (fit.reference != "flat") applied.flat_field_file.clear();  // Loaded, but only that reference uses it.
   j["calibration"] = CalibrationSummaryJson(applied);
+  j["capture"] = CaptureSummaryJson(capture);
   j["layer"] = {{"albedo", fit.layer_albedo}, {"g", fit.layer_g}, {"refine_scattering", fit.refine_scattering},
                 {"source", phase != nullptr ? phase->summary_path : std::string("options")}};
   if (phase != nullptr) j["layer"]["phase_ladder_rung"] = phase->rung;
@@ -62,7 +64,8 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
                       TauFitSummary* summary, TauComparison* comparison, bool* has_truth) {
   *has_truth = false;
   Session session;
-  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
+  CaptureCompleteness capture;
+  THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, run.allow_incomplete_capture, &session, &capture));
   ShadowMapPreparationOptions prep_options;
   prep_options.supersample = run.supersample;
   prep_options.board_distance_m = run.board_distance_m;
@@ -120,7 +123,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_falsecolor.png"), tau, 0, &status, color));
   color.label = "tau Eq.7";
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_plain_falsecolor.png"), tau, 1, &status, color));
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value)));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value)));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
 
@@ -165,6 +168,7 @@ void AddFitTauOptions(OptionParser* parser, FitTauRun* run) {
   parser->AddInt("supersample", &run->supersample, "rectification samples per pixel side");
   parser->AddDouble("board-distance-m", &run->board_distance_m, "override of the manifest's board distance [m]");
   AddCalibrationOptions(parser, &run->calibration);
+  AddIncompleteCaptureOption(parser, &run->allow_incomplete_capture);
 }
 
 int RunFit(int argc, char** argv) {

@@ -4,6 +4,7 @@
 #include "app/commands.h"
 #include "app/option_parser.h"
 #include "core/session_io.h"
+#include "core/session_recovery.h"
 
 namespace thinslab {
 
@@ -16,13 +17,15 @@ int RunInfo(int argc, char** argv) {
     std::cout << parser.Usage();
     return 0;
   }
+  // Through the journal: a running or killed capture shows every frame it recorded.
   Session session;
-  if (status.ok()) status = ReadSession(session_dir, &session);
+  int journaled = 0;
+  if (status.ok()) status = ReadSessionWithJournal(session_dir, &session, &journaled);
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";
     return 1;
   }
-  std::cout << SummarizeSession(session) << "valid: yes\n";
+  std::cout << SummarizeSession(session) << SummarizeCompleteness(AssessCapture(session, journaled)) << "valid: yes\n";
   return 0;
 }
 

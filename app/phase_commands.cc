@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "app/calibration_options.h"
+#include "app/capture_options.h"
 #include "app/commands.h"
 #include "fit/laser_lobe_ladder.h"
 #include "app/option_parser.h"
@@ -82,7 +83,8 @@ Status WriteLobePlot(const std::string& path, const std::vector<LaserRing>& ring
   return WritePlotPng(path, panels, options);
 }
 
-std::string SummaryJson(const PhaseFitSummary& s, const SessionCalibration& calibration, const nlohmann::json& truth) {
+std::string SummaryJson(const PhaseFitSummary& s, const SessionCalibration& calibration,
+                        const CaptureCompleteness& capture, const nlohmann::json& truth) {
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
   j["format_version"] = "1.0";
@@ -106,6 +108,7 @@ std::string SummaryJson(const PhaseFitSummary& s, const SessionCalibration& cali
   j["beam_centre_m"] = {s.beam_centre_m.x(), s.beam_centre_m.y()};
   j["categories"] = s.categories;
   j["calibration"] = CalibrationSummaryJson(calibration);
+  j["capture"] = CaptureSummaryJson(capture);
   j["flat_fielded"] = s.flat_fielded;
   j["clean_subtracted"] = s.clean_subtracted;
   j["timings_s"] = {{"fit", s.total_s}};
@@ -136,10 +139,12 @@ Status MedianTauFromMap(const std::string& path, double* tau) {
 }  // namespace
 
 Status FitPhasePipeline(const std::string& session_dir, const std::string& out_dir, const PhaseFitOptions& options,
-                        const LaserLobePreparationOptions& preparation, const std::string& options_ini,
-                        PhaseFitSummary* summary, std::vector<LaserRing>* rings, LaserLadderResult* ladder) {
+                        const LaserLobePreparationOptions& preparation, bool allow_incomplete_capture,
+                        const std::string& options_ini, PhaseFitSummary* summary, std::vector<LaserRing>* rings,
+                        LaserLadderResult* ladder) {
   Session session;
-  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
+  CaptureCompleteness capture;
+  THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete_capture, &session, &capture));
   LaserLobeImages images;
   THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(session_dir, session, preparation, &images));
   THINSLAB_RETURN_IF_ERROR(FitPhase(options, images, rings, summary).WithContext(session_dir));
@@ -161,7 +166,7 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   }
   StagedDirectory out(out_dir);
   THINSLAB_RETURN_IF_ERROR(out.Init());
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images.calibration, truth)));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images.calibration, capture, truth)));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "rings.csv"), RingsCsv(*rings)));
   if (has_ladder) {
@@ -194,6 +199,8 @@ int RunFitPhase(int argc, char** argv) {
   parser.AddDouble("max-sigma-g", &options.max_sigma_g, "sigma_g above this: g not determined (failure)");
   parser.AddInt("supersample", &preparation.supersample, "rectification sub-samples per board pixel side");
   AddCalibrationOptions(&parser, &preparation.calibration);
+  bool allow_incomplete = false;
+  AddIncompleteCaptureOption(&parser, &allow_incomplete);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
@@ -206,7 +213,8 @@ int RunFitPhase(int argc, char** argv) {
   LaserLadderResult ladder;
   if (status.ok()) {
     status =
-        FitPhasePipeline(session_dir, out_dir, options, preparation, parser.ToIni(), &summary, &rings, &ladder);
+        FitPhasePipeline(session_dir, out_dir, options, preparation, allow_incomplete, parser.ToIni(), &summary, &rings,
+                         &ladder);
   }
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";

@@ -185,7 +185,7 @@ Status RunPhaseStabilityCase(const PhaseStabilityCase& test_case, const std::str
   std::vector<LaserRing> rings;
   LaserLobePreparationOptions preparation;
   preparation.supersample = test_case.supersample;
-  result->pipeline = FitPhasePipeline(session_dir, fit_dir, options, preparation, "# stability case\n",
+  result->pipeline = FitPhasePipeline(session_dir, fit_dir, options, preparation, false, "# stability case\n",
                                       &result->summary, &rings);
   const PhaseFitSummary& s = result->summary;
   for (double v : {s.g, s.sigma_g, s.beta, s.chi2_reduced, s.rms_normalized_residual, s.detection_significance}) {

@@ -110,8 +110,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   std::string error;
   if (!options.Check(&error)) return Status::Error("dmf processing options: " + error);
   Session session;
-  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &session));
-  THINSLAB_RETURN_IF_ERROR(ValidateSession(session, session_dir));
+  THINSLAB_RETURN_IF_ERROR(ReadCapture(session_dir, options.incomplete_capture, &session, &report->capture));
   const std::string manifest = session_dir + "/session.json";
   if (session.rig.cameras.empty()) return Status::Error(manifest + ": rig.cameras is empty");
   CameraInfo camera = session.rig.cameras[0];

@@ -21,6 +21,7 @@
 
 #include "calib/dot_geometry.h"
 #include "calib/session_calibration.h"
+#include "core/session_recovery.h"
 #include "core/status.h"
 #include "fit/dmf_map_fit.h"
 
@@ -39,6 +40,9 @@ struct DmfProcessingOptions {
   // SESSION/calib/rig.json (camera intrinsics, pose and, from `thinslab calib dots`, the dot
   // positions and radiances, which then replace step 1) and response.json (linearisation).
   SessionCalibrationOptions calibration;
+  // A capture whose acquisition did not complete (core/session_recovery.h) is refused unless
+  // kAccept (`fit dmf --allow-incomplete`); its journaled frames are read either way.
+  IncompleteCapture incomplete_capture = IncompleteCapture::kRefuse;
   bool Check(std::string* error) const;
 };
 
@@ -51,6 +55,7 @@ struct DmfProcessingReport {
   size_t slice_bytes = 0;  // Memory of the slice matrix.
   SessionCalibration calibration;  // What was applied.
   std::string dot_geometry_source;  // The all-dots frame used, or the rig.json file.
+  CaptureCompleteness capture;      // What was read.
 };
 
 Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingOptions& options, DmfSliceSet* slices,

@@ -20,8 +20,10 @@
 #include <thread>
 #include <vector>
 
-#include "core/file.h"
+#include <nlohmann/json.hpp>
+
 #include "acquire/session_writer.h"
+#include "core/file.h"
 #include "core/session_io.h"
 #include "tests/testing/frame_record_matchers.h"
 #include "tests/testing/run_thinslab.h"
@@ -119,9 +121,10 @@ TEST_F(CliAcquireTest, KilledMidScanAndResumedEqualsAnUninterruptedRun) {
   const RunResult ref = RunThinslab(ShadowArgs(reference));
   ASSERT_EQ(ref.exit_code, 0) << ref.output;
 
-  // The same acquisition as a child process, killed once 5 frames are on disk.
-  const int frames_at_kill = RunAndKillAfter(ShadowArgs(resumed), resumed, 5);
-  ASSERT_GE(frames_at_kill, 5) << "the acquisition finished before it could be killed";
+  // The same acquisition as a child process, killed once 12 frames are on disk: the darks,
+  // the clean references and the first contaminated frames.
+  const int frames_at_kill = RunAndKillAfter(ShadowArgs(resumed), resumed, 12);
+  ASSERT_GE(frames_at_kill, 12) << "the acquisition finished before it could be killed";
   ASSERT_LT(frames_at_kill, kPlannedFrames) << "killed too late to test a resume";
   Session killed;
   ASSERT_TRUE(ReadSession(resumed, &killed).ok());  // Consistent even when killed.
@@ -129,7 +132,29 @@ TEST_F(CliAcquireTest, KilledMidScanAndResumedEqualsAnUninterruptedRun) {
   // The manifest is rewritten at bounded intervals (32 frames at first): the frames after its
   // last write are in journal.log only, which is what the resume must recover.
   EXPECT_LT(killed.frames.size(), static_cast<size_t>(frames_at_kill));
-  EXPECT_EQ(RunThinslab("info " + resumed).exit_code, 0);
+  // `info` reads through the journal and says the capture is incomplete.
+  const RunResult info = RunThinslab("info " + resumed);
+  EXPECT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find("Frames: " + std::to_string(frames_at_kill) + " "), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("Capture: INCOMPLETE (state running"), std::string::npos) << info.output;
+  // A fit refuses the incomplete capture, naming the way on; --allow-incomplete fits the frames
+  // it has (journaled ones included) and says so in summary.json.
+  const RunResult fit_refused = RunThinslab("fit tau " + resumed + " --out " + *dir_ / "fit_killed");
+  EXPECT_NE(fit_refused.exit_code, 0);
+  EXPECT_NE(fit_refused.output.find("the capture did not complete"), std::string::npos) << fit_refused.output;
+  EXPECT_NE(fit_refused.output.find("--allow-incomplete"), std::string::npos) << fit_refused.output;
+  EXPECT_FALSE(fs::exists(*dir_ / "fit_killed"));
+  const RunResult fit_partial =
+      RunThinslab("fit tau " + resumed + " --allow-incomplete --out " + *dir_ / "fit_killed");
+  ASSERT_EQ(fit_partial.exit_code, 0) << fit_partial.output;
+  EXPECT_NE(fit_partial.output.find("warning: "), std::string::npos) << fit_partial.output;
+  std::string summary_text;
+  ASSERT_TRUE(ReadFileToString(*dir_ / "fit_killed/summary.json", &summary_text).ok());
+  const nlohmann::json capture = nlohmann::json::parse(summary_text)["capture"];
+  EXPECT_EQ(capture["complete"], false);
+  EXPECT_EQ(capture["state"], "running");
+  EXPECT_EQ(capture["usable_frames"], frames_at_kill);
+  EXPECT_EQ(capture["journaled_frames"], frames_at_kill - static_cast<int>(killed.frames.size()));
 
   // Without --resume the folder is refused; with it the scan completes.
   const RunResult refused = RunThinslab(ShadowArgs(resumed));
@@ -157,6 +182,8 @@ TEST_F(CliAcquireTest, KilledMidScanAndResumedEqualsAnUninterruptedRun) {
     EXPECT_TRUE(ia.data() == ib.data()) << "pixel data of frame " << fa.index << " differs";
   }
   EXPECT_EQ(b.acquisition.state, "complete");
+  const RunResult info_complete = RunThinslab("info " + resumed);
+  EXPECT_NE(info_complete.output.find("Capture: complete"), std::string::npos) << info_complete.output;
   std::vector<std::string> events;
   for (const auto& e : b.acquisition.events) events.push_back(e.event);
   EXPECT_EQ(events, (std::vector<std::string>{"started", "resumed", "completed"}));

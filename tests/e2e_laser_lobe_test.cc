@@ -38,7 +38,7 @@ PhaseFitSummary SimulateAndFit(const SyntheticLaserSessionOptions& sim, const Te
   PhaseFitSummary summary;
   std::vector<LaserRing> rings;
   const Status fit =
-      FitPhasePipeline(session, session + "/fit/phase", options, LaserLobePreparationOptions(), "# test\n", &summary, &rings, ladder);
+      FitPhasePipeline(session, session + "/fit/phase", options, LaserLobePreparationOptions(), false, "# test\n", &summary, &rings, ladder);
   EXPECT_TRUE(fit.ok()) << fit.message();
   return summary;
 }
@@ -129,7 +129,7 @@ TEST(LaserLobe, OffCentreBeamAndSaturatedSpike) {
   options.tau_prior_sigma = 0.1;
   PhaseFitSummary free_tau;
   std::vector<LaserRing> rings;
-  ASSERT_TRUE(FitPhasePipeline(dir / "offset", dir / "offset_free", options, LaserLobePreparationOptions(), "# test\n", &free_tau, &rings).ok());
+  ASSERT_TRUE(FitPhasePipeline(dir / "offset", dir / "offset_free", options, LaserLobePreparationOptions(), false, "# test\n", &free_tau, &rings).ok());
   ASSERT_TRUE(free_tau.IsUsable()) << free_tau.message;
   std::printf("tau free (prior 0.39 +- 0.1): tau = %.3f +- %.3f, g = %.4f +- %.4f\n", free_tau.tau, free_tau.sigma_tau,
               free_tau.g, free_tau.sigma_g);

@@ -60,7 +60,7 @@ TEST(LayerChain, FitTauTakesGFromTheLaserLobeFit) {
   PhaseFitSummary phase;
   std::vector<LaserRing> rings;
   LaserLadderResult ladder;
-  ASSERT_TRUE(FitPhasePipeline(lobe, dir / "phase", phase_options, LaserLobePreparationOptions(), "# test\n", &phase,
+  ASSERT_TRUE(FitPhasePipeline(lobe, dir / "phase", phase_options, LaserLobePreparationOptions(), false, "# test\n", &phase,
                                &rings, &ladder)
                   .ok());
   ASSERT_EQ(ladder.chosen_rung, 2);

@@ -1,0 +1,36 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "app/capture_options.h"
+
+#include <iostream>
+
+#include "app/option_parser.h"
+
+namespace thinslab {
+
+void AddIncompleteCaptureOption(OptionParser* parser, bool* allow_incomplete) {
+  parser->AddBool("allow-incomplete", allow_incomplete,
+                  "process a capture whose acquisition did not complete (killed, failed or interrupted)");
+}
+
+Status ReadCaptureForCommand(const std::string& session_dir, bool allow_incomplete, Session* session,
+                             CaptureCompleteness* completeness) {
+  CaptureCompleteness c;
+  THINSLAB_RETURN_IF_ERROR(ReadCapture(session_dir, allow_incomplete ? IncompleteCapture::kAccept : IncompleteCapture::kRefuse, session, &c));
+  if (!c.complete()) {
+    std::cerr << "warning: " << session_dir << ": processing an incomplete capture (" << c.Describe() << ")\n";
+  }
+  if (completeness != nullptr) *completeness = c;
+  return Status::Ok();
+}
+
+nlohmann::json CaptureSummaryJson(const CaptureCompleteness& c) {
+  nlohmann::json j;
+  j["complete"] = c.complete();
+  j["state"] = c.acquired ? nlohmann::json(c.state) : nlohmann::json(nullptr);
+  j["usable_frames"] = c.usable_frames;
+  j["planned_frames"] = c.planned_frames;
+  j["journaled_frames"] = c.journaled_frames;
+  return j;
+}
+
+}  // namespace thinslab

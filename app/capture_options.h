@@ -1,0 +1,28 @@
+// SPDX-License-Identifier: Apache-2.0
+// How the fit and calibration commands read a capture: through the journal, and refusing one
+// whose acquisition did not complete unless --allow-incomplete (core/session_recovery.h); and
+// the record of what was read in their summary.json.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "core/session_recovery.h"
+
+namespace thinslab {
+
+class OptionParser;
+
+// --allow-incomplete: process a capture that was killed, failed or interrupted (the frames it
+// has), instead of refusing it.
+void AddIncompleteCaptureOption(OptionParser* parser, bool* allow_incomplete);
+
+// ReadCapture (refusing an incomplete capture unless allow_incomplete); an accepted incomplete
+// capture is announced on stderr.
+Status ReadCaptureForCommand(const std::string& session_dir, bool allow_incomplete, Session* session,
+                             CaptureCompleteness* completeness = nullptr);
+
+// {"complete": bool, "state": string or null, "usable_frames", "planned_frames",
+// "journaled_frames"} (docs/format.md section 9).
+nlohmann::json CaptureSummaryJson(const CaptureCompleteness& completeness);
+
+}  // namespace thinslab
