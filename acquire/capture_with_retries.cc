@@ -6,6 +6,7 @@ namespace thinslab {
 FrameRecord CapturedRecord(const FrameRecord& templ, const CapturedFrame& frame, FrameStatus status) {
   FrameRecord record = templ;
   record.exposure_time_us = frame.exposure_time_us;
+  record.gain_db = frame.gain_db;
   record.timestamp_utc = frame.timestamp_utc;
   record.camera_frame_id = frame.frame_id;
   record.camera_timestamp_ns = frame.device_timestamp_ns;

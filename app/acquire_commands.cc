@@ -163,6 +163,13 @@ struct CommonOptions {
   bool quiet = false;
   bool sim_realtime = false;
   double camera_timeout_s = 2;
+  // Real cameras (docs/cli.md): "" = the driver's default (Aravis Mono16, V4L2 the deepest
+  // offered); gain and packet size are GigE Vision (Aravis) only.
+  std::string pixel_format;
+  double gain_db = 0;
+  int packet_size = 0;  // 0 = negotiate.
+  int bit_depth = 0;    // 0 = from the pixel format.
+  double black_level_dn = 0;
   int max_retries = 2;
   std::string name;
   std::string out;
@@ -188,6 +195,13 @@ void AddCommonOptions(OptionParser* parser, CommonOptions* o, bool sim) {
     parser->AddBool("sim-realtime", &o->sim_realtime,
                     "the simulated camera takes its exposure time per capture, like a real one");
   } else {
+    parser->AddString("pixel-format", &o->pixel_format,
+                      "camera pixel format: Aravis Mono8|Mono10|Mono12|Mono14|Mono16 (default Mono16), "
+                      "V4L2 GREY|Y10|Y12|Y16 (default the deepest offered)");
+    parser->AddDouble("gain-db", &o->gain_db, "Aravis: analog gain in the camera's Gain units (dB on SFNC cameras)");
+    parser->AddInt("packet-size", &o->packet_size, "Aravis: GVSP packet size [bytes], 576..16384; 0 = negotiate");
+    parser->AddInt("bit-depth", &o->bit_depth, "Aravis: sensor bits in the pixel format's container (0: the format's)");
+    parser->AddDouble("black-level-dn", &o->black_level_dn, "Aravis: camera black level [DN] for the manifest");
     parser->AddString("name", &o->name, "session name");
     parser->AddString("region-mm", &o->region_mm, "sample region x0,y0,x1,y1 on the sample plane [mm]");
     parser->AddDouble("pitch-mm", &o->pitch_mm, "pitch of the rectified sample grid [mm]");
@@ -216,7 +230,14 @@ Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
     options.address = o.camera.substr(7);
     options.frame_timeout_s = o.camera_timeout_s;
     options.connect_timeout_s = o.camera_timeout_s;
+    if (!o.pixel_format.empty()) options.pixel_format = o.pixel_format;
+    options.gain_db = o.gain_db;
+    options.packet_size = o.packet_size;
+    options.bit_depth = o.bit_depth;
+    options.black_level_dn = o.black_level_dn;
     if (options.address.empty()) return Status::Error("thinslab acquire: --camera aravis: needs an address");
+    std::string error;  // Names the option's field, e.g. AravisCameraOptions::packet_size for --packet-size.
+    if (!options.Check(&error)) return Status::Error("camera " + o.camera + ": " + error);
     std::unique_ptr<AravisCamera> camera;
     THINSLAB_RETURN_IF_ERROR(OpenAravisCamera(options, &camera).WithContext("camera " + o.camera));
     devices->camera = std::move(camera);
@@ -226,6 +247,12 @@ Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
     V4l2CameraOptions options;
     options.device = o.camera.substr(5);
     options.timeout_s = o.camera_timeout_s;
+    options.pixel_format = o.pixel_format;
+    if (o.gain_db != 0 || o.packet_size != 0 || o.bit_depth != 0 || o.black_level_dn != 0) {
+      return Status::Error("camera " + o.camera +
+                           ": --gain-db, --packet-size, --bit-depth and --black-level-dn are Aravis options; "
+                           "the V4L2 driver sets none of them");
+    }
     if (options.device.empty()) return Status::Error("thinslab acquire: --camera v4l2: needs a device path");
     std::unique_ptr<V4l2Camera> camera;
     THINSLAB_RETURN_IF_ERROR(OpenV4l2Camera(options, &camera).WithContext("camera " + o.camera));

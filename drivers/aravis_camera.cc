@@ -333,6 +333,8 @@ Status AravisCamera::Configure() {
       return fail("cannot set gain " + Num(options_.gain_db) + " (camera range " + Num(lo) + " .. " + Num(hi) +
                   "): " + message);
     }
+    gain_ = arv_camera_get_gain(cam, &error);
+    if (error != nullptr) return fail("cannot read the gain back: " + TakeMessage(&error));
   } else if (options_.gain_db != 0) {
     return fail("camera has no Gain feature; AravisCameraOptions::gain_db must be 0");
   }
@@ -595,6 +597,7 @@ Status AravisCamera::Capture(CapturedFrame* frame) {
   const uint64_t system_ns = arv_buffer_get_system_timestamp(buffer);
   frame->raw_dn = std::move(image);
   frame->exposure_time_us = exposure_us_;
+  frame->gain_db = gain_;
   frame->frame_id = frame_id;
   // The device timestamp counts camera ticks since its power-up (Aravis converts them to ns),
   // not UTC: it is recorded as is, and the host's clock when the frame arrived gives the UTC

@@ -103,6 +103,7 @@ class AravisCamera : public Camera {
   int bytes_per_pixel_ = 2;
   int packet_size_bytes_ = 0;
   double exposure_us_ = 0;
+  double gain_ = 0;  // Read back after setting (cameras round it); stamped on every frame.
   uint64_t last_raw_frame_id_ = 0;
   uint64_t frame_id_offset_ = 0;
   bool have_frame_id_ = false;

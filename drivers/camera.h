@@ -17,6 +17,7 @@ namespace thinslab {
 struct CapturedFrame {
   Image raw_dn;                   // Single channel, raw digital numbers (black level included).
   double exposure_time_us = 0;    // Exposure the device reports having applied.
+  double gain_db = 0;             // Analogue gain the device reports applying (0 if it has none).
   std::string timestamp_utc;      // ISO 8601, host clock.
   // What the device stamped on the frame, if it does (FrameRecord::camera_frame_id and
   // camera_timestamp_ns in the manifest): its frame counter, and its timestamp in ns on its own

@@ -14,18 +14,23 @@
 #include <chrono>
 #include <cstring>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <mutex>
 #include <thread>
 #include <vector>
 
 #include "acquire/capture_with_retries.h"
 #include "acquire/shadow_map_session.h"
+#include "core/file.h"
 #include "core/session_io.h"
 #include "drivers/aravis_camera.h"
 #include "drivers/aravis_fake_camera.h"
 #include "sim/contamination_pattern.h"
 #include "sim/shadow_map_rig.h"
+#include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
+#include "tests/testing/xvfb_server.h"
 
 namespace thinslab {
 namespace {
@@ -197,6 +202,76 @@ TEST(AravisFakeCamera, UnofferedOrUnreadablePixelFormatsAreRefusedByName) {
   const Status rgb = OpenAravisCamera(options, &camera);
   ASSERT_FALSE(rgb.ok());
   EXPECT_NE(rgb.message().find("'RGB8' is offered but thinslab reads only"), std::string::npos) << rgb.message();
+}
+
+// `thinslab acquire --camera aravis:127.0.0.1` (a child process talking to this process's fake
+// camera over loopback): --pixel-format, --gain-db and --packet-size reach the camera, the values
+// it applied are recorded in the manifest, and ones it refuses fail naming the camera before
+// OUTPUT is touched. The bracket kind needs a display: a private Xvfb.
+// (The fake accepts any gain, so an out-of-range gain is not tested here.)
+TEST(AravisFakeCamera, AcquireCommandSetsPixelFormatGainAndPacketSize) {
+  // A still scene (the synchronisation settles on two agreeing frames); requests are recorded.
+  std::mutex mutex;
+  std::vector<AravisFakeFrameRequest> requests;
+  AravisFakeFrameSource still = [&](const AravisFakeFrameRequest& request, Image* raw_dn) {
+    *raw_dn = TestPattern(request.width_px, request.height_px, 0, 255);
+    std::lock_guard<std::mutex> lock(mutex);
+    requests.push_back(request);
+    return Status::Ok();
+  };
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), still, &fake).ok());
+  TempDir dir;
+  const std::string camera = " --camera aravis:" + fake->address() + " --camera-timeout-s 1 --quiet";
+  struct Refusal {
+    std::string options, named;
+  };
+  for (const Refusal& r : {Refusal{"--pixel-format Mono12", "'Mono12' is not offered"},
+                           Refusal{"--packet-size 100", "packet_size = 100"}}) {
+    const RunResult refused = RunThinslab("acquire bracket" + camera + " " + r.options + " " + dir / "refused");
+    EXPECT_NE(refused.exit_code, 0) << refused.output;
+    EXPECT_NE(refused.output.find(r.named), std::string::npos) << refused.output;
+    EXPECT_NE(refused.output.find("aravis:" + fake->address()), std::string::npos) << refused.output;
+    EXPECT_FALSE(std::filesystem::exists(dir / "refused")) << r.options;
+  }
+
+  XvfbServer xvfb;
+  std::string error;
+  ASSERT_TRUE(xvfb.Start(320, 240, &error)) << error;
+  setenv("DISPLAY", xvfb.display().c_str(), 1);
+#ifdef __SANITIZE_ADDRESS__
+  setenv("SDL_RENDER_DRIVER", "software", 1);  // No Mesa GL under LeakSanitizer (pattern_window_test).
+  setenv("SDL_FRAMEBUFFER_ACCELERATION", "0", 1);
+#endif
+  // The operator confirms the sample state (none: nothing in the light path) with Enter.
+  const std::string enter = dir / "enter.txt";
+  ASSERT_TRUE(WriteFileAtomically(enter, "\n\n").ok());
+  const RunResult ok = RunThinslab("acquire bracket" + camera +
+                                   " --display 0 --pixel-format Mono8 --gain-db 2 --packet-size 1400"
+                                   " --exposures-us 1000,2000 --capture-dark false " + dir / "s",
+                                   enter);
+  ASSERT_EQ(ok.exit_code, 0) << ok.output;
+  Session session;
+  ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
+  const CameraInfo& cam0 = session.rig.cameras.at(0);
+  EXPECT_EQ(cam0.bit_depth, 8);
+  EXPECT_EQ(cam0.saturation_dn, 255);
+  EXPECT_EQ(cam0.stream_statistics.at("packet_size_bytes"), 1400);
+  ASSERT_EQ(session.frames.size(), 2u);
+  for (const FrameRecord& f : session.frames) EXPECT_EQ(f.gain_db, 2) << "frame " << f.index;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    ASSERT_FALSE(requests.empty());
+    EXPECT_EQ(requests.back().pixel_format, "Mono8");
+    EXPECT_EQ(requests.back().gain, 2);
+  }
+  // A resume with another pixel format is another plan: refused.
+  const RunResult other = RunThinslab("acquire bracket" + camera +
+                                      " --display 0 --pixel-format Mono16 --gain-db 2 --packet-size 1400"
+                                      " --exposures-us 1000,2000 --capture-dark false --resume " + dir / "s",
+                                      enter);
+  EXPECT_NE(other.exit_code, 0) << other.output;
+  EXPECT_NE(other.output.find("acquisition.plan"), std::string::npos) << other.output;
 }
 
 TEST(AravisFakeCamera, ExposureIsReadBackAsTheCameraRoundedIt) {

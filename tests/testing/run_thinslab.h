@@ -22,9 +22,10 @@ struct RunResult {
   std::string output;
 };
 
-// `args` are appended to the command line as given (a shell parses them); stdin is empty.
-inline RunResult RunThinslab(const std::string& args) {
-  const std::string command = ThinslabBinary() + " " + args + " 2>&1 </dev/null";
+// `args` are appended to the command line as given (a shell parses them); stdin is empty, or
+// the file `stdin_path` (e.g. the operator's Enter presses of `thinslab acquire` at a real rig).
+inline RunResult RunThinslab(const std::string& args, const std::string& stdin_path = "/dev/null") {
+  const std::string command = ThinslabBinary() + " " + args + " 2>&1 <'" + stdin_path + "'";
   RunResult result;
   FILE* pipe = popen(command.c_str(), "r");
   if (pipe == nullptr) return result;
