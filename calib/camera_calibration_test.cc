@@ -13,6 +13,7 @@
 #include "core/camera_model.h"
 #include "core/file.h"
 #include "sim/sim_chessboard.h"
+#include "tests/testing/chessboard_views.h"
 
 namespace thinslab {
 namespace {
@@ -36,18 +37,7 @@ CameraInfo TrueCamera() {
 std::vector<NamedImage> RenderViews(const CameraInfo& truth, int count, uint64_t seed) {
   SimChessboardOptions options;
   options.render_supersample = 3;
-  std::vector<Rigid3d> poses;
-  EXPECT_TRUE(MakeChessboardViewPoses(options, truth, count, 35, seed, &poses).ok());
-  std::vector<NamedImage> images;
-  for (size_t v = 0; v < poses.size(); ++v) {
-    CameraInfo cam = truth;
-    cam.cam_from_sample = poses[v];
-    NamedImage named;
-    named.name = "view" + std::to_string(v);
-    EXPECT_TRUE(RenderChessboardView(options, cam, seed + v, &named.image).ok());
-    images.push_back(std::move(named));
-  }
-  return images;
+  return RenderChessboardViews(options, truth, count, 35, seed);
 }
 
 // Largest difference (px, at the true focal length) between the displacements that two

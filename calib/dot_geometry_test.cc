@@ -7,9 +7,13 @@
 #include <cstdio>
 #include <memory>
 
+#include "calib/camera_calibration.h"
+#include "calib/plane_pose.h"
 #include "core/camera_model.h"
 #include "core/math.h"
+#include "sim/sim_chessboard.h"
 #include "sim/sim_dot_monitor.h"
+#include "tests/testing/chessboard_views.h"
 
 namespace thinslab {
 namespace {
@@ -168,6 +172,91 @@ TEST(DotGeometryTest, SimulatedSingleDotProjectsToItsTruePosition) {
   EXPECT_NEAR(sy / sw, expected.y(), 0.1);
   EXPECT_TRUE(rig->ShowPattern("").ok());
   EXPECT_TRUE(rig->shown_dots().empty());
+}
+
+// The whole chain as at a rig (issue #6 part 3): intrinsics and distortion from 12 chessboard
+// views, the sample-plane pose from a chessboard lying on the sample (with those intrinsics),
+// then the dots of the all-dots frame back-projected through that estimated camera. Nothing of
+// the true camera reaches the calibration except through rendered images. Then the one
+// quantity the chain takes on trust, the monitor distance d: an error dd moves the
+// back-projected dots sideways by about dd tan(theta) (theta: the camera ray's angle from the
+// monitor normal, ~45 degrees here), so d must be known to better than the position tolerance.
+TEST(DotGeometryTest, WholeCalibrationChainFromChessboardViews) {
+  SimDotMonitorOptions options;
+  std::unique_ptr<SimDotMonitor> rig;
+  ASSERT_TRUE(SimDotMonitor::Create(options, &rig).ok());
+  const CameraInfo& truth = rig->camera_info();
+
+  // 1. Intrinsics: a 9x6 board of 8 mm squares in 12 poses filling the 0.14 m wide view.
+  SimChessboardOptions board_sim;
+  board_sim.square_m = 0.008;
+  board_sim.render_supersample = 3;
+  const std::vector<NamedImage> views = RenderChessboardViews(board_sim, truth, 12, 30, 11);
+  CameraCalibrationOptions calibration;
+  calibration.board.square_m = board_sim.square_m;
+  CameraCalibrationResult intrinsics;
+  const Status calibrated = CalibrateCameraFromImages(views, calibration, &intrinsics);
+  ASSERT_TRUE(calibrated.ok()) << calibrated.message();
+  CameraInfo estimated = truth;  // Id, size and sensor fields; geometry replaced below.
+  estimated.fx_px = intrinsics.camera.fx_px;
+  estimated.fy_px = intrinsics.camera.fy_px;
+  estimated.cx_px = intrinsics.camera.cx_px;
+  estimated.cy_px = intrinsics.camera.cy_px;
+  estimated.distortion = intrinsics.camera.distortion;
+  estimated.cam_from_sample = Rigid3d();
+
+  // 2. Pose: the same board centred on the sample plane's origin.
+  Rigid3d sample_from_board;
+  sample_from_board.translation = Eigen::Vector3d(-4 * board_sim.square_m, -2.5 * board_sim.square_m, 0);
+  CameraInfo on_sample = truth;
+  on_sample.cam_from_sample.rotation = truth.cam_from_sample.rotation;
+  on_sample.cam_from_sample.translation = truth.cam_from_sample * sample_from_board.translation;
+  Image target;
+  ASSERT_TRUE(RenderChessboardView(board_sim, on_sample, 7, &target).ok());
+  PlanePoseResult pose;
+  const Status posed = EstimateSamplePoseFromChessboard(estimated, target, calibration.board, sample_from_board, &pose);
+  ASSERT_TRUE(posed.ok()) << posed.message();
+  estimated.cam_from_sample = pose.cam_from_plane;
+
+  // 3. Dots through the estimated camera.
+  const Image frame = Capture(rig.get(), kGrid);
+  const double full_scale = truth.saturation_dn - truth.black_level_dn;
+  DotGeometryOptions dot_options;
+  dot_options.dot_radius_px = options.dot_radius_px;
+  auto worst_error = [&](const MonitorInfo& monitor, double* rms_m) {
+    DotGeometryResult result;
+    const Status s = CalibrateDotGeometry(frame, 1000, full_scale, estimated, monitor, GridDots(), dot_options, &result);
+    EXPECT_TRUE(s.ok()) << s.message();
+    double worst = 0, sum_sq = 0;
+    for (const DotRecord& dot : result.dots) {
+      const double e = (dot.position_in_sample_m - rig->DotInSample(dot.dot_px)).head<2>().norm();
+      worst = std::max(worst, e);
+      sum_sq += e * e;
+    }
+    *rms_m = std::sqrt(sum_sq / std::max<size_t>(1, result.dots.size()));
+    return worst;
+  };
+  double rms_m = 0;
+  const double worst_m = worst_error(rig->monitor_info(), &rms_m);
+  const double camera_shift_m =
+      (pose.cam_from_plane.Inverse().translation - truth.cam_from_sample.Inverse().translation).norm();
+  std::printf("calibration chain: fx %.2f (true %.2f, %.3f %%), rms %.3f px; camera centre %.3f mm off; "
+              "dots worst %.4f mm, rms %.4f mm\n",
+              estimated.fx_px, truth.fx_px, 100 * (estimated.fx_px / truth.fx_px - 1), intrinsics.rms_px,
+              camera_shift_m * 1e3, worst_m * 1e3, rms_m * 1e3);
+  EXPECT_LT(worst_m, 0.1e-3);  // Issue #6: every dot within 0.1 mm.
+
+  // 4. The monitor 0.5 mm further than the manifest says: the dots move by ~0.5 mm x tan(theta).
+  MonitorInfo nearer = rig->monitor_info();
+  const Eigen::Vector3d normal = nearer.sample_from_monitor.rotation * Eigen::Vector3d::UnitZ();
+  nearer.sample_from_monitor.translation += 0.5e-3 * normal.z() / std::abs(normal.z()) * Eigen::Vector3d::UnitZ();
+  double rms_off_m = 0;
+  worst_error(nearer, &rms_off_m);
+  const Eigen::Vector3d centre_ray = (truth.cam_from_sample.Inverse().translation - rig->DotInSample({200, 200}));
+  const double tan_theta = centre_ray.head<2>().norm() / std::abs(centre_ray.z());
+  std::printf("monitor distance 0.5 mm off: dots rms %.4f mm (0.5 mm x tan(theta) = %.4f mm)\n", rms_off_m * 1e3,
+              0.5 * tan_theta);
+  EXPECT_NEAR(rms_off_m, 0.5e-3 * tan_theta, 0.3 * 0.5e-3 * tan_theta);
 }
 
 TEST(DotGeometryTest, BadInputsAreErrors) {
