@@ -45,9 +45,7 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
   j["final_max_update_tau"] = s.final_max_update_tau;
   j["rms_normalized_residual"] = s.rms_normalized_residual;
   j["mean_scattered_fraction"] = s.mean_scattered_fraction;
-  SessionCalibration applied = data.calibration;
-  if (fit.reference != "flat") applied.flat_field_file.clear();  // Loaded, but only that reference uses it.
-  j["calibration"] = CalibrationSummaryJson(applied);
+  j["calibration"] = CalibrationSummaryJson(data.calibration);
   j["capture"] = CaptureSummaryJson(capture);
   j["layer"] = {{"albedo", fit.layer_albedo}, {"g", fit.layer_g}, {"refine_scattering", fit.refine_scattering},
                 {"source", phase != nullptr ? phase->summary_path : std::string("options")}};
@@ -70,6 +68,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   prep_options.supersample = run.supersample;
   prep_options.board_distance_m = run.board_distance_m;
   prep_options.calibration = run.calibration;
+  prep_options.load_flat_field = run.fit.reference == "flat";
   TauFitOptions fit = run.fit;
   PhaseLayerChoice phase;
   if (!run.phase_dir.empty()) {

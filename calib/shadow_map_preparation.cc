@@ -119,7 +119,7 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   }
   maps->camera = session.rig.cameras[0];
   SessionCalibrationOptions calibration = options.calibration;
-  calibration.flat_field = calibration.mode != "none";
+  calibration.flat_field = options.load_flat_field && calibration.mode != "none";
   THINSLAB_RETURN_IF_ERROR(LoadSessionCalibration(session_dir, calibration, &maps->camera, &maps->calibration));
   const CameraInfo& camera = maps->camera;
   const CameraResponse* response = maps->calibration.response_or_null();

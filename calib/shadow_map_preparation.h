@@ -22,6 +22,9 @@ struct ShadowMapPreparationOptions {
   double board_distance_m = 0;
   // SESSION/calib/rig.json (camera intrinsics and pose) and response.json (linearisation).
   SessionCalibrationOptions calibration;
+  // Also load and rectify SESSION/calib/flat_field.exr (into `flat`), for `fit tau --reference
+  // flat`; off, the file is not read (a flat field of another camera cannot fail other fits).
+  bool load_flat_field = false;
 
   bool Check(std::string* error) const;
 };

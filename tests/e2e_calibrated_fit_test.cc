@@ -268,11 +268,21 @@ TEST(CalibratedFit, CalibrationOfAnotherCameraIsRefusedNamingTheFile) {
   sim.rig.monte_carlo.num_photons = 2000;
   ASSERT_TRUE(SynthesizeShadowMapSession(sim, Patches(), session).ok());
   std::filesystem::create_directories(session + "/calib");
+  // A flat field of another camera is refused where it is used (--reference flat), and not read
+  // by a fit that does not use it.
+  Image wrong_flat(4, 4, {"flat", "valid"});
+  ASSERT_TRUE(WriteExr(session + "/calib/flat_field.exr", wrong_flat).ok());
+  RunResult r = RunThinslab("fit tau " + session + " --reference flat --out " + (dir / "fit"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("calib/flat_field.exr: 4x4, camera 'cam0' is"), std::string::npos) << r.output;
+  r = RunThinslab("fit tau " + session + " --out " + (dir / "fit_frames"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  std::filesystem::remove(session + "/calib/flat_field.exr");
   ASSERT_TRUE(WriteFileAtomically(session + "/calib/response.json",
                                   R"({"format": "thinslab-response", "format_version": "1.0", "method": "debevec",
                                       "bit_depth": 8, "black_level_dn": 64, "knots_dn": [], "linear_dn": []})")
                   .ok());
-  RunResult r = RunThinslab("fit tau " + session + " --out " + (dir / "fit"));
+  r = RunThinslab("fit tau " + session + " --out " + (dir / "fit"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("calib/response.json: bit_depth: 8"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "fit"));
