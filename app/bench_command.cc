@@ -3,6 +3,7 @@
 // part 2) on simulated captures made here (app/knob_sweep.h). Writes
 //   OUTDIR/knob_sweep_dmf.{csv,png}  dual-microfacet fit: held-out error against fit time
 //   OUTDIR/knob_sweep_tau.{csv,png}  tau fit: RMS relative error vs truth against fit time
+//   OUTDIR/knob_sweep_phase.{csv,png} laser-lobe g fit: |g - g_true| against fit time
 //   OUTDIR/knob_sweep.txt            the rig, and the Pareto front of each method
 #include <filesystem>
 #include <iostream>
@@ -14,7 +15,9 @@
 #include "core/exr_io.h"
 #include "core/file.h"
 #include "core/session_io.h"
+#include "calib/laser_lobe_preparation.h"
 #include "fit/dmf_processing.h"
+#include "sim/laser_lobe_rig.h"
 #include "sim/synthesize_dot_scan_session.h"
 
 namespace thinslab {
@@ -22,11 +25,12 @@ namespace {
 
 struct SweepRun {
   bool quick = false;
-  std::string methods = "dmf,tau";
+  std::string methods = "dmf,tau,phase";
   int dots = 30;            // Dot grid per side (quick: 16).
   double pitch_mm = 2;      // Fit grid pitch on the 80 mm sample (quick: 4 mm).
   int camera_width_px = 480;  // Dot-scan camera (quick: 240).
   int shadow_camera_width_px = 1600;  // Shadow-map camera (quick: 640).
+  int laser_camera_width_px = 1600;   // Laser-lobe camera (quick: 640).
   int threads = 2;
   bool keep_captures = false;
 };
@@ -130,17 +134,52 @@ Status SweepTau(const SweepRun& run, const std::string& capture_dir, const std::
                          "tau fit: accuracy against time (simulated shadow map)", "RMS relative error vs truth");
 }
 
+Status SweepPhase(const SweepRun& run, const std::string& capture_dir, const std::string& out_dir,
+                  std::vector<SweepPoint>* points, std::string* rig_text) {
+  SyntheticLaserSessionOptions sim;
+  sim.rig.camera_width_px = run.laser_camera_width_px;
+  sim.rig.camera_height_px = run.laser_camera_width_px * 3 / 4;
+  sim.session.capture_clean = false;
+  std::cerr << "bench sweep: simulating a laser-lobe capture (" << sim.rig.camera_width_px << " x "
+            << sim.rig.camera_height_px << " px camera)\n";
+  THINSLAB_RETURN_IF_ERROR(SynthesizeLaserLobeSession(sim, capture_dir));
+  Session session;
+  THINSLAB_RETURN_IF_ERROR(ReadSession(capture_dir, &session));
+  LaserLobeImages images;
+  THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(capture_dir, session, LaserLobePreparationOptions(), &images));
+  PhaseSweepOptions options;
+  options.defaults.tau = sim.rig.layer_tau;
+  if (run.quick) {
+    options.ring_widths_px = {8};
+    options.max_thetas_deg = {30};
+    options.core_beam_radii = {8};
+    options.huber_scales = {};
+  }
+  std::vector<SweepPoint> phase_points;
+  THINSLAB_RETURN_IF_ERROR(SweepPhaseKnobs(images, sim.rig.layer_g, options, &phase_points));
+  points->insert(points->end(), phase_points.begin(), phase_points.end());
+  std::ostringstream rig;
+  rig << "phase: simulated laser lobe (layer tau " << sim.rig.layer_tau << ", albedo " << sim.rig.layer_albedo << ", g "
+      << sim.rig.layer_g << ", board " << sim.rig.board_distance_m * 1e3 << " mm), " << sim.rig.camera_width_px
+      << " x " << sim.rig.camera_height_px << " px camera; error = |g - g_true|, truth_error column = sigma_g\n";
+  *rig_text += rig.str();
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out_dir, "knob_sweep_phase.csv"), SweepCsv(phase_points)));
+  return WriteSweepChart(JoinPath(out_dir, "knob_sweep_phase.png"), phase_points, "phase",
+                         "Laser-lobe g fit: accuracy against time (simulated laser lobe)", "|g - g_true|");
+}
+
 int RunBenchSweep(int argc, char** argv) {
   SweepRun run;
   std::string out_dir;
   OptionParser parser("bench sweep");
   parser.AddPositional("OUTDIR", &out_dir, "folder for the CSV files, charts and summary (created)");
   parser.AddBool("quick", &run.quick, "CI size: small rigs, fewer knob values");
-  parser.AddString("methods", &run.methods, "comma-separated: dmf, tau");
+  parser.AddString("methods", &run.methods, "comma-separated: dmf, tau, phase");
   parser.AddInt("dots", &run.dots, "dot grid per side of the simulated dot scan");
   parser.AddDouble("pitch-mm", &run.pitch_mm, "fit grid pitch on the 80 mm dot-scan sample [mm]");
   parser.AddInt("camera-width-px", &run.camera_width_px, "dot-scan camera width [px] (height 3/4 of it)");
   parser.AddInt("shadow-camera-width-px", &run.shadow_camera_width_px, "shadow-map camera width [px]");
+  parser.AddInt("laser-camera-width-px", &run.laser_camera_width_px, "laser-lobe camera width [px]");
   parser.AddInt("threads", &run.threads, "threads of the fits and the Monte Carlo");
   parser.AddBool("keep-captures", &run.keep_captures, "keep the simulated captures in OUTDIR/captures");
   // Quick defaults apply unless the option is given explicitly: parse twice.
@@ -150,6 +189,7 @@ int RunBenchSweep(int argc, char** argv) {
     run.pitch_mm = 4;
     run.camera_width_px = 240;
     run.shadow_camera_width_px = 640;
+    run.laser_camera_width_px = 640;
     status = parser.Parse(argc, argv);
   }
   if (!status.ok()) {
@@ -162,16 +202,17 @@ int RunBenchSweep(int argc, char** argv) {
   }
   const bool do_dmf = run.methods.find("dmf") != std::string::npos;
   const bool do_tau = run.methods.find("tau") != std::string::npos;
+  const bool do_phase = run.methods.find("phase") != std::string::npos;
   for (std::stringstream list(run.methods); list.good();) {
     std::string m;
     std::getline(list, m, ',');
-    if (m != "dmf" && m != "tau") {
-      std::cerr << "thinslab bench sweep: --methods: unknown method '" << m << "' (dmf, tau)\n";
+    if (m != "dmf" && m != "tau" && m != "phase") {
+      std::cerr << "thinslab bench sweep: --methods: unknown method '" << m << "' (dmf, tau, phase)\n";
       return 2;
     }
   }
   if (run.dots < 4 || run.pitch_mm <= 0 || run.camera_width_px < 64 || run.shadow_camera_width_px < 64 ||
-      run.threads < 1) {
+      run.laser_camera_width_px < 64 || run.threads < 1) {
     std::cerr << "thinslab bench sweep: --dots must be >= 4, --pitch-mm > 0, camera widths >= 64 px, --threads >= 1\n";
     return 2;
   }
@@ -186,10 +227,13 @@ int RunBenchSweep(int argc, char** argv) {
     std::cerr << "thinslab bench sweep: " << captures << ": exists; remove it or choose another OUTDIR\n";
     return 1;
   }
-  std::vector<SweepPoint> dmf_points, tau_points;
+  std::vector<SweepPoint> dmf_points, tau_points, phase_points;
   std::string rig_text;
   if (do_dmf) status = SweepDmf(run, JoinPath(captures, "dot_scan"), out_dir, &dmf_points, &rig_text);
   if (status.ok() && do_tau) status = SweepTau(run, JoinPath(captures, "shadow_map"), out_dir, &tau_points, &rig_text);
+  if (status.ok() && do_phase) {
+    status = SweepPhase(run, JoinPath(captures, "laser_lobe"), out_dir, &phase_points, &rig_text);
+  }
   if (!run.keep_captures) std::filesystem::remove_all(captures, ec);
   if (!status.ok()) {
     std::cerr << "thinslab bench sweep: " << status.message() << "\n";
@@ -197,7 +241,8 @@ int RunBenchSweep(int argc, char** argv) {
   }
   std::string text = "thinslab bench sweep " + std::string(run.quick ? "(quick)" : "") + "\n" + rig_text + "\n";
   if (do_dmf) text += FrontText(dmf_points, "dmf") + "\n";
-  if (do_tau) text += FrontText(tau_points, "tau");
+  if (do_tau) text += FrontText(tau_points, "tau") + "\n";
+  if (do_phase) text += FrontText(phase_points, "phase");
   status = WriteFileAtomically(JoinPath(out_dir, "knob_sweep.txt"), text);
   if (!status.ok()) {
     std::cerr << "thinslab bench sweep: " << status.message() << "\n";

@@ -259,6 +259,52 @@ Status SweepTauKnobs(const RectifiedShadowMaps& data, const Image& truth, const 
   return Status::Ok();
 }
 
+Status SweepPhaseKnobs(const LaserLobeImages& images, double g_true, const PhaseSweepOptions& options,
+                       std::vector<SweepPoint>* points) {
+  std::string error;
+  if (!options.defaults.Check(&error)) return Status::Error("phase sweep defaults: " + error);
+  auto run = [&](const std::string& knob, const std::string& value, const PhaseFitOptions& o) -> Status {
+    std::vector<LaserRing> rings;
+    PhaseFitSummary summary;
+    THINSLAB_RETURN_IF_ERROR(FitPhase(o, images, &rings, &summary).WithContext("knob " + knob + " = " + value));
+    SweepPoint p;
+    p.method = "phase";
+    p.knob = knob;
+    p.value = value;
+    p.seconds = summary.total_s;
+    p.error = summary.IsUsable() ? std::abs(summary.g - g_true) : -1;
+    p.truth_error = summary.IsUsable() ? summary.sigma_g : -1;
+    p.parameters = o.tau_free ? 3 : 2;
+    std::fprintf(stderr, "  phase %s = %s: %.4f s, %s, g %.4f (true %.4f) +- %.4f, %d rings\n", knob.c_str(),
+                 value.c_str(), p.seconds, summary.ResultName().c_str(), summary.g, g_true, summary.sigma_g,
+                 summary.num_rings);
+    points->push_back(p);
+    return Status::Ok();
+  };
+  const PhaseFitOptions& d = options.defaults;
+  THINSLAB_RETURN_IF_ERROR(run("default", "-", d));
+  auto sweep = [&](const std::string& knob, const std::vector<double>& values, double PhaseFitOptions::*field) {
+    for (double v : values) {
+      if (v == d.*field) continue;
+      PhaseFitOptions o = d;
+      o.*field = v;
+      THINSLAB_RETURN_IF_ERROR(run(knob, Number(v), o));
+    }
+    return Status::Ok();
+  };
+  THINSLAB_RETURN_IF_ERROR(sweep("ring_width_px", options.ring_widths_px, &PhaseFitOptions::ring_width_px));
+  THINSLAB_RETURN_IF_ERROR(sweep("max_theta_deg", options.max_thetas_deg, &PhaseFitOptions::max_theta_deg));
+  THINSLAB_RETURN_IF_ERROR(sweep("core_beam_radii", options.core_beam_radii, &PhaseFitOptions::core_beam_radii));
+  THINSLAB_RETURN_IF_ERROR(sweep("huber_scale", options.huber_scales, &PhaseFitOptions::huber_scale));
+  if (options.tau_free && !d.tau_free) {
+    PhaseFitOptions o = d;
+    o.tau_free = true;
+    THINSLAB_RETURN_IF_ERROR(run("tau_free", "true", o));
+  }
+  MarkParetoFront(points);
+  return Status::Ok();
+}
+
 std::string SweepCsv(const std::vector<SweepPoint>& points) {
   // Labels are quoted when they hold a comma or a quote (RFC 4180).
   auto field = [](const std::string& text) {

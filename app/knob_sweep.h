@@ -10,25 +10,29 @@
 #include <string>
 #include <vector>
 
+#include "calib/laser_lobe_preparation.h"
 #include "calib/shadow_map_preparation.h"
 #include "core/image.h"
 #include "core/status.h"
 #include "fit/dmf_evaluation.h"
 #include "fit/dmf_map_fit.h"
+#include "fit/phase_fit.h"
 #include "fit/tau_fit.h"
 
 namespace thinslab {
 
 struct SweepPoint {
-  std::string method;  // "dmf" or "tau".
+  std::string method;  // "dmf", "tau" or "phase".
   std::string knob;    // Option varied, e.g. "ndf_resolution"; "default" for the defaults.
   std::string value;   // Its value, e.g. "24".
   double seconds = 0;  // Fit time (processing of the capture excluded: it is shared).
-  double error = -1;   // dmf: median held-out in-lobe relative RMS; tau: RMS relative error vs truth.
+  // dmf: median held-out in-lobe relative RMS; tau: RMS relative error vs truth; phase:
+  // |g - g_true|.
+  double error = -1;
   // dmf: median NDF relative L2 vs truth over the one-sided regions (-1 where the configuration
-  // has no tabulated NDF); tau: mean relative bias vs truth.
+  // has no tabulated NDF); tau: mean relative bias vs truth; phase: the fit's sigma_g.
   double truth_error = -1;
-  int parameters = 0;     // Fitted parameters over the map (tau: fitted pixels).
+  int parameters = 0;     // Fitted parameters over the map (tau: fitted pixels; phase: 2 or 3).
   int fitted_points = 0;  // dmf: points fitted directly (representatives when clustered).
   bool pareto = false;
 };
@@ -61,6 +65,20 @@ struct TauSweepOptions {
 // `truth` holds channel "tau" on the rectified grid of `data`.
 Status SweepTauKnobs(const RectifiedShadowMaps& data, const Image& truth, const TauSweepOptions& options,
                      std::vector<SweepPoint>* points);
+
+struct PhaseSweepOptions {
+  PhaseFitOptions defaults;  // tau set to the capture's.
+  std::vector<double> ring_widths_px = {1, 4, 8};
+  std::vector<double> max_thetas_deg = {30, 45, 70};
+  std::vector<double> core_beam_radii = {2, 5, 8};
+  std::vector<double> huber_scales = {1, 5};
+  bool tau_free = true;  // Also fit tau with its prior.
+};
+
+// Laser-lobe g fit (Gu Eq. 8): error = |g - g_true|, truth_error = the fit's own sigma_g (what a
+// user sees without the truth); a fit that fails is listed with error -1 (never on the front).
+Status SweepPhaseKnobs(const LaserLobeImages& images, double g_true, const PhaseSweepOptions& options,
+                       std::vector<SweepPoint>* points);
 
 std::string SweepCsv(const std::vector<SweepPoint>& points);
 
