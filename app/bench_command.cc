@@ -151,7 +151,7 @@ Status SweepPhase(const SweepRun& run, const std::string& capture_dir, const std
   options.defaults.tau = sim.rig.layer_tau;
   if (run.quick) {
     options.ring_widths_px = {8};
-    options.max_thetas_deg = {30};
+    options.max_thetas_deg = {30, 60};
     options.core_beam_radii = {8};
     options.huber_scales = {};
   }

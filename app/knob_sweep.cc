@@ -285,9 +285,11 @@ Status SweepPhaseKnobs(const LaserLobeImages& images, double g_true, const Phase
   THINSLAB_RETURN_IF_ERROR(run("default", "-", d));
   auto sweep = [&](const std::string& knob, const std::vector<double>& values, double PhaseFitOptions::*field) {
     for (double v : values) {
-      if (v == d.*field) continue;
+      const bool fixes_theta = field == &PhaseFitOptions::max_theta_deg;
+      if (v == d.*field && !(fixes_theta && d.max_theta_auto)) continue;
       PhaseFitOptions o = d;
       o.*field = v;
+      if (fixes_theta) o.max_theta_auto = false;  // A fixed outermost angle instead of the choice.
       THINSLAB_RETURN_IF_ERROR(run(knob, Number(v), o));
     }
     return Status::Ok();

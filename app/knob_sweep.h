@@ -67,9 +67,9 @@ Status SweepTauKnobs(const RectifiedShadowMaps& data, const Image& truth, const 
                      std::vector<SweepPoint>* points);
 
 struct PhaseSweepOptions {
-  PhaseFitOptions defaults;  // tau set to the capture's.
+  PhaseFitOptions defaults;  // tau set to the capture's; the outermost angle chosen (max_theta_auto).
   std::vector<double> ring_widths_px = {1, 4, 8};
-  std::vector<double> max_thetas_deg = {30, 45, 70};
+  std::vector<double> max_thetas_deg = {30, 45, 60, 70};  // Fixed, against the default choice.
   std::vector<double> core_beam_radii = {2, 5, 8};
   std::vector<double> huber_scales = {1, 5};
   bool tau_free = true;  // Also fit tau with its prior.

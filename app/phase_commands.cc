@@ -96,6 +96,7 @@ std::string SummaryJson(const PhaseFitSummary& s, const SessionCalibration& cali
   j["sigma_g_covariance"] = s.sigma_g_covariance;
   j["sigma_g_jackknife"] = s.sigma_g_jackknife;
   j["sigma_g_range"] = s.sigma_g_range;
+  j["sigma_g_choice"] = s.sigma_g_choice;
   j["beta"] = s.beta;
   j["sigma_log_beta"] = s.sigma_log_beta;
   j["tau"] = s.tau;
@@ -105,6 +106,12 @@ std::string SummaryJson(const PhaseFitSummary& s, const SessionCalibration& cali
   j["detection_significance"] = s.detection_significance;
   j["rings"] = s.num_rings;
   j["theta_range_deg"] = {s.theta_min_deg, s.theta_max_deg};
+  j["max_theta_deg"] = s.max_theta_deg;
+  nlohmann::json trials = nlohmann::json::array();
+  for (const auto& [theta, sigma_g] : s.max_theta_trials) {
+    trials.push_back({{"max_theta_deg", theta}, {"sigma_g", sigma_g >= 0 ? nlohmann::json(sigma_g) : nlohmann::json(nullptr)}});
+  }
+  j["max_theta_trials"] = trials;
   j["beam_centre_m"] = {s.beam_centre_m.x(), s.beam_centre_m.y()};
   j["categories"] = s.categories;
   j["calibration"] = CalibrationSummaryJson(calibration);
@@ -153,7 +160,10 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   LaserLadderResult ladder_result;
   const bool has_ladder = rings->size() >= 10;
   if (has_ladder) {
-    THINSLAB_RETURN_IF_ERROR(FitLaserLobeLadder(*rings, options, 2.0, &ladder_result).WithContext(session_dir));
+    PhaseFitOptions chosen = options;  // The rings are those of the kept outermost angle.
+    chosen.max_theta_auto = false;
+    chosen.max_theta_deg = summary->max_theta_deg;
+    THINSLAB_RETURN_IF_ERROR(FitLaserLobeLadder(*rings, chosen, 2.0, &ladder_result).WithContext(session_dir));
   }
   if (ladder != nullptr) *ladder = ladder_result;
   nlohmann::json truth;
@@ -191,7 +201,9 @@ int RunFitPhase(int argc, char** argv) {
   parser.AddDouble("ring-width-px", &options.ring_width_px, "ring width [board pixels]");
   parser.AddDouble("core-beam-radii", &options.core_beam_radii, "excluded core radius [beam radii]");
   parser.AddDouble("core-margin-px", &options.core_margin_px, "excluded core: at least beam radius + this [px]");
-  parser.AddDouble("max-theta-deg", &options.max_theta_deg, "outermost ring angle [deg]");
+  std::string max_theta = "auto";
+  parser.AddString("max-theta-deg", &max_theta,
+                   "outermost ring angle [deg], or auto: of 30, 45 and 60 the one whose fit has the smallest sigma_g");
   parser.AddBool("subtract-clean", &options.subtract_clean, "subtract the clean-glass lobe if captured");
   parser.AddBool("flat-field", &options.flat_field, "divide by the board flat field if captured");
   parser.AddDouble("huber-scale", &options.huber_scale, "robust loss scale [standard errors]");
@@ -205,6 +217,14 @@ int RunFitPhase(int argc, char** argv) {
   if (parser.help_requested()) {
     std::cout << parser.Usage();
     return 0;
+  }
+  if (status.ok() && max_theta != "auto") {
+    char* end = nullptr;
+    options.max_theta_deg = std::strtod(max_theta.c_str(), &end);
+    options.max_theta_auto = false;
+    if (end == max_theta.c_str() || *end != '\0') {
+      status = Status::Error("thinslab fit phase: option --max-theta-deg = '" + max_theta + "': expected auto or degrees");
+    }
   }
   if (status.ok() && !tau_map.empty()) status = MedianTauFromMap(tau_map, &options.tau);
   if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "phase");

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "calib/laser_lobe_preparation.h"
@@ -28,7 +29,15 @@ struct PhaseFitOptions {
   // beam radius + core_margin_px pixels) from the beam centre (docs/models/laser_lobe_g.md).
   double core_beam_radii = 3;
   double core_margin_px = 4;
-  double max_theta_deg = 60;  // Outermost ring.
+  double max_theta_deg = 60;  // Outermost ring (when max_theta_auto is off).
+  // Fit once per candidate outermost angle and keep the successful fit with the smallest sigma_g.
+  // Eq. 8 is single scattering: the layer's multiple scattering widens the lobe's tail, which
+  // reads as a lower g when wide rings are fitted (g 0.8: 0.017 low at 60 degrees, 0.005 at 30;
+  // docs/benchmarks.md), while a broad lobe (small g) needs the wide rings to be determined at all
+  // (g 0.2: sigma_g 0.12 at 30 degrees, 0.012 at 60). sigma_g holds both (its angle-range term
+  // measures the mismatch), so the smallest one picks the angle without the truth.
+  bool max_theta_auto = true;
+  std::vector<double> max_theta_candidates_deg = {30, 45, 60};
   int min_ring_pixels = 8;
   bool subtract_clean = true;  // Subtract the clean-glass lobe when the session has one.
   bool flat_field = true;      // Divide by the board flat field when the session has one.
@@ -61,6 +70,9 @@ struct PhaseFitSummary {
   // g(theta <= max_theta / 2)|). The last two catch lobe-shape mismatch (multiple scattering,
   // which Eq. 8 leaves out) that the covariance, which assumes the model is right, cannot.
   double sigma_g = 0, sigma_g_covariance = 0, sigma_g_jackknife = 0, sigma_g_range = 0;
+  // With max_theta_auto, sigma_g also holds (in quadrature) |g - g at the neighbouring candidate
+  // angle|: what the choice of the outermost angle moves g by (0 without it).
+  double sigma_g_choice = 0;
   double beta = 0, sigma_log_beta = 0;
   double tau = 0, sigma_tau = 0;
   double chi2_reduced = 0;
@@ -68,6 +80,9 @@ struct PhaseFitSummary {
   double detection_significance = 0;  // (chi2 of the rings against zero - N) / sqrt(2N).
   int num_rings = 0;
   double theta_min_deg = 0, theta_max_deg = 0;
+  double max_theta_deg = 0;  // Outermost-angle limit of the kept fit (chosen, with max_theta_auto).
+  // With max_theta_auto: (candidate angle, its sigma_g, or -1 if that fit did not succeed).
+  std::vector<std::pair<double, double>> max_theta_trials;
   Eigen::Vector2d beam_centre_m = Eigen::Vector2d::Zero();
   std::vector<std::string> categories;  // Gu Fig. 2 categories consistent with g +- sigma_g.
   bool flat_fielded = false, clean_subtracted = false;
