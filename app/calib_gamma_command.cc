@@ -52,6 +52,11 @@ int RunCalibGamma(int argc, char** argv) {
   parser.AddDouble("lit-fraction", &options.lit_fraction,
                    "lit region: level-1 signal above this fraction of its --lit-percentile percentile");
   parser.AddDouble("lit-percentile", &options.lit_percentile, "percentile the lit region refers to, in (0, 1]");
+  parser.AddDouble("near-saturation", &options.near_saturation,
+                   "frames with more than --max-near-saturated-fraction of their pixels above this fraction of "
+                   "saturation are left out");
+  parser.AddDouble("max-near-saturated-fraction", &options.max_near_saturated_fraction,
+                   "fraction of a frame's pixels allowed above --near-saturation");
   parser.AddDouble("max-saturated-fraction", &options.max_saturated_fraction,
                    "more of the lit pixels saturated at every exposure of a level is an error");
   parser.AddDouble("outlier-mads", &options.outlier_mads, "pixels further than this many scaled MADs are left out");
@@ -98,6 +103,7 @@ int RunCalibGamma(int argc, char** argv) {
   j["darks"] = summary.num_darks;
   j["lit_pixels"] = summary.lit_pixels;
   j["pixels_saturated"] = summary.pixels_saturated;
+  j["frames_near_saturation"] = summary.frames_near_saturation;
   j["outliers_rejected"] = summary.outliers_rejected;
   j["rms_residual"] = summary.rms_residual;
   j["max_abs_residual"] = summary.max_abs_residual;

@@ -82,6 +82,11 @@ bool DisplayGammaFitOptions::Check(std::string* error) const {
     msg << "DisplayGammaFitOptions::lit_percentile = " << lit_percentile << ". Violated constraint: in (0, 1]";
   } else if (!(outlier_mads > 0)) {
     msg << "DisplayGammaFitOptions::outlier_mads = " << outlier_mads << ". Violated constraint: > 0";
+  } else if (!(near_saturation > 0 && near_saturation <= 1)) {
+    msg << "DisplayGammaFitOptions::near_saturation = " << near_saturation << ". Violated constraint: in (0, 1]";
+  } else if (!(max_near_saturated_fraction >= 0 && max_near_saturated_fraction < 1)) {
+    msg << "DisplayGammaFitOptions::max_near_saturated_fraction = " << max_near_saturated_fraction
+        << ". Violated constraint: in [0, 1)";
   } else if (!(max_saturated_fraction >= 0 && max_saturated_fraction < 1)) {
     msg << "DisplayGammaFitOptions::max_saturated_fraction = " << max_saturated_fraction
         << ". Violated constraint: in [0, 1)";
@@ -147,7 +152,35 @@ Status FitDisplayGammaSession(const std::string& session_dir, const Session& ses
     if (f->camera_id == camera.id) darks.push_back(f);
   }
   summary->num_darks = static_cast<int>(darks.size());
+  // Whole frames near saturation are left out of their bracket. Dropping only the saturated
+  // samples, as the merge does, censors a flat level whose pixels sit near full well: the pixels
+  // that noise pushed over are lost and the rest merge low (measured: 6e-4 of full light at a
+  // level 4 refresh periods put at 99 % of full well, where one unsaturated exposure gives
+  // 1.5e-4). With whole frames left out, every pixel of a level is merged from the same exposures.
+  const double z_near = options.near_saturation * (camera.saturation_dn - camera.black_level_dn);
   for (Bracket& b : brackets) {
+    std::vector<const FrameRecord*> kept;
+    int64_t fewest_near = -1;
+    for (const FrameRecord* f : b.frames) {
+      Image z;
+      const Status loaded = LoadFrame(session_dir, session, *f, &z);
+      if (!loaded.ok()) return fail(loaded.message());
+      int64_t near = 0;
+      for (float v : z.data()) near += v >= z_near;
+      if (near <= options.max_near_saturated_fraction * z.num_pixels()) {
+        kept.push_back(f);
+      } else {
+        ++summary->frames_near_saturation;
+      }
+      fewest_near = fewest_near < 0 ? near : std::min(fewest_near, near);
+    }
+    if (kept.empty()) {
+      return fail(JoinPath(session_dir, b.frames[0]->file) + ": every exposure of " + b.pattern + " is saturated or " +
+                  "near it (at least " + std::to_string(fewest_near) + " px at or above " +
+                  Num(100 * options.near_saturation) + " % of saturation, more than " +
+                  Num(100 * options.max_near_saturated_fraction) + " % of the frame); shorten the exposures (--exposures-us)");
+    }
+    b.frames = kept;
     SessionMergeInfo info;
     const Status merged = MergeSessionBracket(session_dir, session, camera, b.frames, darks, response, HdrMergeOptions(),
                                               options.fallback_read_noise_dn, &b.hdr, &info);
@@ -276,7 +309,8 @@ std::string DisplayGammaFitSummary::BriefReport() const {
   std::ostringstream out;
   out << "display gamma: " << message << "; " << num_levels << " levels, " << measurements.size() << " brackets, "
       << num_darks << " darks, response " << response << "; lit region " << lit_pixels << " px ("
-      << pixels_saturated << " saturated px left out, " << outliers_rejected << " outlier samples); fit residual rms "
+      << pixels_saturated << " saturated px left out, " << frames_near_saturation << " frames near saturation left out, "
+      << outliers_rejected << " outlier samples); fit residual rms "
       << Num(rms_residual) << " max " << Num(max_abs_residual) << " of full light, repeat rms " << Num(repeat_rms)
       << "; power-law exponent " << Num(power_exponent) << " (information only)";
   return out.str();
