@@ -40,9 +40,7 @@ std::vector<double> DisplayGammaLevelOrder(const DisplayGammaSessionOptions& opt
 }
 
 std::vector<PlannedFrame> PlanDisplayGammaSession(const DisplayGammaSessionOptions& options, double refresh_period_s) {
-  ExposureBracketOptions bracket = options.bracket;
-  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = refresh_period_s;
-  const std::vector<double> exposures = PlanExposureBracket(bracket);
+  const std::vector<double> exposures = PlanExposureBracket(WithDisplayRefresh(options.bracket, refresh_period_s));
   std::vector<PlannedFrame> plan;
   for (double t : exposures) {
     for (int k = 0; k < options.dark_frames; ++k) plan.push_back({"dark", "none", "", t, std::nullopt});
@@ -58,10 +56,9 @@ Status RunDisplayGammaSession(const DisplayGammaSessionOptions& options, Camera*
                               const SampleChanger& change_sample, SessionWriter* writer) {
   std::string error;
   if (!options.Check(&error)) return Status::Error(error);
-  ExposureBracketOptions bracket = options.bracket;
-  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = display->refresh_period_s();
-  return RunSynchronizedPlan(PlanDisplayGammaSession(options, display->refresh_period_s()), bracket, options.sync,
-                             camera, display, change_sample, writer);
+  const double period = display->refresh_period_s();
+  return RunSynchronizedPlan(PlanDisplayGammaSession(options, period), WithDisplayRefresh(options.bracket, period),
+                             options.sync, camera, display, change_sample, writer);
 }
 
 }  // namespace thinslab
