@@ -74,6 +74,8 @@ std::string PlanText(const std::string& kind, const std::string& ini) {
     const std::string key = line.substr(0, line.find(" = "));
     bool skip = false;
     for (const char* k : kNotPlan) skip = skip || key == k;
+    // No table: the plan reads as before the option existed, so older sessions still resume.
+    skip = skip || line == "gamma-table = ";
     if (!skip) plan << "; " << line;
   }
   return plan.str();
