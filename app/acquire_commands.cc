@@ -557,6 +557,7 @@ void AddBracketOptions(OptionParser* parser, ExposureBracketOptions* bracket, st
 struct SimDisplayText {
   std::string transfer = "power:2.2/8bit";
   double black_fraction = 0.002;
+  std::string sensor_response = "linear";  // The camera's tone curve (sim/sensor_model.h).
 };
 
 void AddSimMonitorOptions(OptionParser* parser, SimDotMonitorOptions* monitor, SimDisplayText* display) {
@@ -564,6 +565,8 @@ void AddSimMonitorOptions(OptionParser* parser, SimDotMonitorOptions* monitor, S
                     "simulated display curve: linear, power:<exponent> or srgb, optionally /<n>bit drive quantisation");
   parser->AddDouble("sim-display-black", &display->black_fraction,
                     "light the simulated display emits at drive 0, as a fraction of full light [0, 1)");
+  parser->AddString("sensor-response", &display->sensor_response,
+                    "simulated camera response: linear, gamma or s_curve (sim/sensor_model.h)");
   parser->AddInt("monitor-width-px", &monitor->monitor_width_px, "simulated monitor width [px]");
   parser->AddInt("monitor-height-px", &monitor->monitor_height_px, "simulated monitor height [px]");
   parser->AddDouble("dot-radiance", &monitor->dot_radiance, "radiance of a lit monitor pixel (relative)");
@@ -580,6 +583,16 @@ Status ApplySimDisplay(const SimDisplayText& display, SimDotMonitorOptions* moni
                          ": expected a fraction in [0, 1)");
   }
   monitor->black_radiance = display.black_fraction * monitor->dot_radiance;
+  if (display.sensor_response == "linear") {
+    monitor->sensor.response = SimResponseCurve::kLinear;
+  } else if (display.sensor_response == "gamma") {
+    monitor->sensor.response = SimResponseCurve::kGamma;
+  } else if (display.sensor_response == "s_curve") {
+    monitor->sensor.response = SimResponseCurve::kSCurve;
+  } else {
+    return Status::Error("thinslab acquire: option --sensor-response = '" + display.sensor_response +
+                         "': expected linear, gamma or s_curve");
+  }
   return Status::Ok();
 }
 
