@@ -77,9 +77,7 @@ std::string DotScanGridPattern(const DotScanSessionOptions& options) {
 }
 
 std::vector<PlannedFrame> PlanDotScan(const DotScanSessionOptions& options, double refresh_period_s) {
-  ExposureBracketOptions bracket = options.bracket;
-  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = refresh_period_s;
-  const std::vector<double> exposures = PlanExposureBracket(bracket);
+  const std::vector<double> exposures = PlanExposureBracket(WithDisplayRefresh(options.bracket, refresh_period_s));
   std::vector<PlannedFrame> plan;
   if (options.capture_all_dots) {
     for (double t : exposures) plan.push_back({"all_dots", "none", DotScanGridPattern(options), t, std::nullopt});
@@ -98,10 +96,9 @@ Status RunDotScanSession(const DotScanSessionOptions& options, Camera* camera, P
                          const SampleChanger& change_sample, SessionWriter* writer) {
   std::string error;
   if (!options.Check(&error)) return Status::Error(error);
-  ExposureBracketOptions bracket = options.bracket;
-  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = monitor->refresh_period_s();
-  return RunSynchronizedPlan(PlanDotScan(options, monitor->refresh_period_s()), bracket, options.sync, camera,
-                             monitor, change_sample, writer);
+  const double period = monitor->refresh_period_s();
+  return RunSynchronizedPlan(PlanDotScan(options, period), WithDisplayRefresh(options.bracket, period), options.sync,
+                             camera, monitor, change_sample, writer);
 }
 
 bool BracketSessionOptions::Check(std::string* error) const {
@@ -120,9 +117,7 @@ bool BracketSessionOptions::Check(std::string* error) const {
 }
 
 std::vector<PlannedFrame> PlanBracketSession(const BracketSessionOptions& options, double refresh_period_s) {
-  ExposureBracketOptions bracket = options.bracket;
-  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = refresh_period_s;
-  const std::vector<double> exposures = PlanExposureBracket(bracket);
+  const std::vector<double> exposures = PlanExposureBracket(WithDisplayRefresh(options.bracket, refresh_period_s));
   std::vector<PlannedFrame> plan;
   if (options.capture_dark) {
     for (double t : exposures) {
@@ -141,10 +136,9 @@ Status RunBracketSession(const BracketSessionOptions& options, Camera* camera, P
                          const SampleChanger& change_sample, SessionWriter* writer) {
   std::string error;
   if (!options.Check(&error)) return Status::Error(error);
-  ExposureBracketOptions bracket = options.bracket;
-  if (!(bracket.refresh_period_s > 0)) bracket.refresh_period_s = projector->refresh_period_s();
-  return RunSynchronizedPlan(PlanBracketSession(options, projector->refresh_period_s()), bracket, options.sync,
-                             camera, projector, change_sample, writer);
+  const double period = projector->refresh_period_s();
+  return RunSynchronizedPlan(PlanBracketSession(options, period), WithDisplayRefresh(options.bracket, period),
+                             options.sync, camera, projector, change_sample, writer);
 }
 
 }  // namespace thinslab

@@ -46,6 +46,11 @@ double ExposureAsRefreshMultipleUs(double requested_us, double refresh_period_s)
   return std::max(1.0, std::round(requested_us / period_us)) * period_us;
 }
 
+ExposureBracketOptions WithDisplayRefresh(ExposureBracketOptions options, double display_refresh_period_s) {
+  if (!(options.refresh_period_s > 0)) options.refresh_period_s = display_refresh_period_s;
+  return options;
+}
+
 std::vector<double> PlanExposureBracket(const ExposureBracketOptions& options) {
   std::vector<double> planned = options.exposures_us;
   if (planned.empty()) {

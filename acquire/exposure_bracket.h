@@ -32,6 +32,10 @@ struct ExposureBracketOptions {
   bool Check(std::string* error) const;
 };
 
+// `options` with refresh_period_s set to `display_refresh_period_s` unless it already gives
+// one (> 0): the session scripts' rule "0 takes the display's".
+ExposureBracketOptions WithDisplayRefresh(ExposureBracketOptions options, double display_refresh_period_s);
+
 // Requested exposures [us], ascending, duplicates (after rounding to refresh multiples)
 // removed.
 std::vector<double> PlanExposureBracket(const ExposureBracketOptions& options);

@@ -18,6 +18,7 @@
 #include <memory>
 #include <sstream>
 
+#include "acquire/display_gamma_session.h"
 #include "acquire/dot_scan_session.h"
 #include "acquire/laser_lobe_session.h"
 #include "acquire/session_journal.h"
@@ -73,6 +74,8 @@ std::string PlanText(const std::string& kind, const std::string& ini) {
     const std::string key = line.substr(0, line.find(" = "));
     bool skip = false;
     for (const char* k : kNotPlan) skip = skip || key == k;
+    // No table: the plan reads as before the option existed, so older sessions still resume.
+    skip = skip || line == "gamma-table = ";
     if (!skip) plan << "; " << line;
   }
   return plan.str();
@@ -173,6 +176,7 @@ struct CommonOptions {
   int max_retries = 2;
   std::string name;
   std::string out;
+  std::string gamma_table;  // Display gamma table applied by every display (docs/drivers.md, "Gamma").
   // Rig description for real cameras (the simulated rigs describe themselves).
   std::string region_mm = "-10,-10,10,10";
   double pitch_mm = 0.1;
@@ -191,6 +195,8 @@ void AddCommonOptions(OptionParser* parser, CommonOptions* o, bool sim) {
   parser->AddBool("quiet", &o->quiet, "no progress on stderr");
   parser->AddDouble("camera-timeout-s", &o->camera_timeout_s, "real cameras: connect and frame timeout [s]");
   parser->AddInt("max-retries", &o->max_retries, "further attempts after a failed capture");
+  parser->AddString("gamma-table", &o->gamma_table,
+                    "display gamma table (thinslab calib gamma) applied by the display, real or simulated");
   if (sim) {
     parser->AddBool("sim-realtime", &o->sim_realtime,
                     "the simulated camera takes its exposure time per capture, like a real one");
@@ -218,6 +224,7 @@ struct RealDevices {
   std::unique_ptr<PatternWindow> window;
   std::unique_ptr<UsbLaser> laser;
   std::string display_name, laser_name;
+  GammaTable gamma_table = IdentityGammaTable();  // --gamma-table, read before any device opens.
 };
 
 Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
@@ -265,10 +272,14 @@ Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
 
 // Camera first (the device every kind needs), then display and laser.
 Status OpenRealDevices(const CommonOptions& o, RealDevices* devices) {
+  if (!o.gamma_table.empty()) {
+    THINSLAB_RETURN_IF_ERROR(ReadGammaTable(o.gamma_table, &devices->gamma_table).WithContext("option --gamma-table"));
+  }
   THINSLAB_RETURN_IF_ERROR(OpenRealCamera(o, devices));
   if (o.display >= 0) {
     PatternWindowOptions options;
     options.display_index = o.display;
+    options.gamma_table_path = o.gamma_table;
     THINSLAB_RETURN_IF_ERROR(OpenPatternWindow(options, &devices->window).WithContext("display " + std::to_string(o.display)));
     devices->display_name = "display " + std::to_string(o.display);
   } else if (o.display < -1) {
@@ -336,6 +347,16 @@ int Finish(const std::string& kind, const CommonOptions& common, const std::stri
   run.session_dir = common.out;
   run.resume = common.resume;
   run.plan = plan;
+  if (!common.gamma_table.empty()) {
+    // The table's entries, not only its path, say which table drove the display.
+    GammaTable table;
+    const Status read = ReadGammaTable(common.gamma_table, &table);
+    if (!read.ok()) {
+      std::cerr << "error: " << read.WithContext("option --gamma-table").message() << "\n";
+      return 1;
+    }
+    run.plan += "; gamma-table-entries = " + GammaTableCompactText(table);
+  }
   run.planned_frames = planned_frames;
   run.camera_name = camera_name;
   run.label = "acquire " + kind;
@@ -556,7 +577,23 @@ void AddBracketOptions(OptionParser* parser, ExposureBracketOptions* bracket, st
   parser->AddInt("exposure-steps", &bracket->steps, "exposures in the geometric bracket");
 }
 
-void AddSimMonitorOptions(OptionParser* parser, SimDotMonitorOptions* monitor) {
+// The simulated monitor of `thinslab acquire` is a real-looking display, not the ideal linear
+// one of the synthetic sessions: a "gamma 2.2" curve, 8-bit drive and 0.2 % of full light at
+// drive 0 (a 500:1 panel), so that `acquire gamma` has something to measure and --gamma-table
+// something to correct (docs/drivers.md, "Gamma").
+struct SimDisplayText {
+  std::string transfer = "power:2.2/8bit";
+  double black_fraction = 0.002;
+  std::string sensor_response = "linear";  // The camera's tone curve (sim/sensor_model.h).
+};
+
+void AddSimMonitorOptions(OptionParser* parser, SimDotMonitorOptions* monitor, SimDisplayText* display) {
+  parser->AddString("sim-display-transfer", &display->transfer,
+                    "simulated display curve: linear, power:<exponent> or srgb, optionally /<n>bit drive quantisation");
+  parser->AddDouble("sim-display-black", &display->black_fraction,
+                    "light the simulated display emits at drive 0, as a fraction of full light [0, 1)");
+  parser->AddString("sensor-response", &display->sensor_response,
+                    "simulated camera response: linear, gamma or s_curve (sim/sensor_model.h)");
   parser->AddInt("monitor-width-px", &monitor->monitor_width_px, "simulated monitor width [px]");
   parser->AddInt("monitor-height-px", &monitor->monitor_height_px, "simulated monitor height [px]");
   parser->AddDouble("dot-radiance", &monitor->dot_radiance, "radiance of a lit monitor pixel (relative)");
@@ -566,16 +603,48 @@ void AddSimMonitorOptions(OptionParser* parser, SimDotMonitorOptions* monitor) {
   parser->AddUint64("seed", &monitor->seed, "seed of the sensor noise");
 }
 
-// dot-scan and bracket: display-driven, synchronised sessions.
-int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
-  const std::string kind = dot_scan ? "dot-scan" : "bracket";
+Status ApplySimDisplay(const SimDisplayText& display, SimDotMonitorOptions* monitor) {
+  THINSLAB_RETURN_IF_ERROR(ParseSimDisplayTransfer(display.transfer, "sim-display-transfer", &monitor->display_transfer));
+  if (!(display.black_fraction >= 0 && display.black_fraction < 1)) {
+    return Status::Error("thinslab acquire: option --sim-display-black = " + std::to_string(display.black_fraction) +
+                         ": expected a fraction in [0, 1)");
+  }
+  monitor->black_radiance = display.black_fraction * monitor->dot_radiance;
+  if (display.sensor_response == "linear") {
+    monitor->sensor.response = SimResponseCurve::kLinear;
+  } else if (display.sensor_response == "gamma") {
+    monitor->sensor.response = SimResponseCurve::kGamma;
+  } else if (display.sensor_response == "s_curve") {
+    monitor->sensor.response = SimResponseCurve::kSCurve;
+  } else {
+    return Status::Error("thinslab acquire: option --sensor-response = '" + display.sensor_response +
+                         "': expected linear, gamma or s_curve");
+  }
+  return Status::Ok();
+}
+
+enum class DisplayKind { kDotScan, kBracket, kGamma };
+
+// dot-scan, bracket and gamma: display-driven, synchronised sessions.
+int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
+  const bool dot_scan = which == DisplayKind::kDotScan, gamma = which == DisplayKind::kGamma;
+  const std::string kind = dot_scan ? "dot-scan" : gamma ? "gamma" : "bracket";
   CommonOptions common;
   SimDotMonitorOptions monitor;
+  SimDisplayText sim_display;
   DotScanSessionOptions dots;
   BracketSessionOptions bracket_session;
-  ExposureBracketOptions& bracket = dot_scan ? dots.bracket : bracket_session.bracket;
-  DisplaySyncOptions& sync = dot_scan ? dots.sync : bracket_session.sync;
-  if (dot_scan) {
+  DisplayGammaSessionOptions gamma_session;
+  ExposureBracketOptions& bracket = dot_scan ? dots.bracket : gamma ? gamma_session.bracket : bracket_session.bracket;
+  DisplaySyncOptions& sync = dot_scan ? dots.sync : gamma ? gamma_session.sync : bracket_session.sync;
+  if (gamma) {
+    // Level 1 fills ~40 % of full well in one refresh period (the shortest exposure); exposures
+    // 1, 4 and 16 periods bring level 1/16 of a gamma 2.2 display to ~1.4 % of full well.
+    monitor.dot_radiance = 0.05;
+    bracket.min_exposure_us = 1e6 / 85;
+    bracket.max_exposure_us = 16e6 / 85;
+    bracket.steps = 3;
+  } else if (dot_scan) {
     // A dot's peak pixel then collects ~40 % of full well in one refresh period, so the shortest
     // exposure of the bracket (and the all-dots frame) is unsaturated for `calib dots`.
     monitor.dot_radiance = 0.05;
@@ -586,12 +655,12 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
     bracket.max_exposure_us = 160000;
     bracket.steps = 5;
   }
-  std::string name = dot_scan ? "dot_scan" : "exposure_bracket", exposures;
+  std::string name = dot_scan ? "dot_scan" : gamma ? "display_gamma" : "exposure_bracket", exposures;
   OptionParser parser("acquire " + kind);
   AddCommonOptions(&parser, &common, sim);
   if (sim) {
     parser.AddString("name", &name, "session name");
-    AddSimMonitorOptions(&parser, &monitor);
+    AddSimMonitorOptions(&parser, &monitor, &sim_display);
   }
   AddBracketOptions(&parser, &bracket, &exposures);
   AddSyncOptions(&parser, &sync);
@@ -602,6 +671,11 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
     parser.AddBool("capture-all-dots", &dots.capture_all_dots, "capture the all-dots frame without sample");
     parser.AddBool("capture-dark", &dots.capture_dark, "capture a dark bracket with the sample");
     parser.AddString("sample-state", &dots.sample_state, "sample state of the dot frames");
+  } else if (gamma) {
+    parser.AddInt("steps", &gamma_session.steps, "drive levels 0, 1/steps, ..., 1");
+    parser.AddInt("repeats", &gamma_session.repeats, "measurements of every level, each repeat in a new random order");
+    parser.AddUint64("order-seed", &gamma_session.order_seed, "seed of the level order");
+    parser.AddInt("dark-frames", &gamma_session.dark_frames, "dark (display black) frames per exposure");
   } else {
     parser.AddString("pattern", &bracket_session.pattern, "pattern of the bracket frames (drivers/pattern_id.h)");
     parser.AddBool("capture-dark", &bracket_session.capture_dark, "also capture a dark bracket");
@@ -610,6 +684,11 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) return Help(parser);
   if (status.ok() && !exposures.empty()) status = ParseExposureList(exposures, "exposures-us", &bracket.exposures_us);
+  if (status.ok() && sim) status = ApplySimDisplay(sim_display, &monitor);
+  if (status.ok() && gamma && !common.gamma_table.empty()) {
+    status = Status::Error("thinslab acquire gamma: option --gamma-table: the gamma measurement drives the display "
+                           "through the identity table; give the table to the other kinds");
+  }
   if (!status.ok()) return Fail(status);
   sync.max_retries = common.max_retries;
   const std::string plan = PlanText(kind, parser.ToIni());
@@ -624,6 +703,7 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
   RigInfo rig;
   SampleChanger change;
   if (sim) {
+    monitor.gamma_table = devices.gamma_table;
     status = SimDotMonitor::Create(monitor, &sim_monitor);
     if (!status.ok()) return Fail(status);
     display = sim_monitor.get();
@@ -658,13 +738,17 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
     dots.monitor_height_px = sim ? monitor.monitor_height_px : devices.window->height();
   }
   std::string error;
-  if (dot_scan ? !dots.Check(&error) : !bracket_session.Check(&error)) return Fail(Status::Error(error));
-  const int planned = static_cast<int>(dot_scan ? PlanDotScan(dots, display->refresh_period_s()).size()
-                                                : PlanBracketSession(bracket_session, display->refresh_period_s()).size());
-  return Finish(kind, common, plan, planned, MakeHeader(name, dot_scan ? "dot_scan" : "exposure_bracket", rig, sim),
-                camera, sim ? "sim" : common.camera,
+  const bool checked = dot_scan ? dots.Check(&error) : gamma ? gamma_session.Check(&error) : bracket_session.Check(&error);
+  if (!checked) return Fail(Status::Error(error));
+  const double period = display->refresh_period_s();
+  const int planned = static_cast<int>(dot_scan ? PlanDotScan(dots, period).size()
+                                       : gamma  ? PlanDisplayGammaSession(gamma_session, period).size()
+                                                : PlanBracketSession(bracket_session, period).size());
+  const std::string session_kind = dot_scan ? "dot_scan" : gamma ? "display_gamma" : "exposure_bracket";
+  return Finish(kind, common, plan, planned, MakeHeader(name, session_kind, rig, sim), camera, sim ? "sim" : common.camera,
                 [&](Camera* cam, SessionWriter* writer) {
                   return dot_scan ? RunDotScanSession(dots, cam, &projector, change, writer)
+                         : gamma  ? RunDisplayGammaSession(gamma_session, cam, &projector, change, writer)
                                   : RunBracketSession(bracket_session, cam, &projector, change, writer);
                 },
                 &tracker);
@@ -675,8 +759,8 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, bool dot_scan) {
 int RunAcquire(int argc, char** argv) {
   const std::string kind = argc > 0 ? argv[0] : "";
   const char* usage =
-      "usage: thinslab acquire <shadow-maps|laser|dot-scan|bracket> [--camera sim|aravis:<ip>|v4l2:<device>]\n"
-      "       [--display <n>] [--laser <spec>] [--resume] [kind options] OUTPUT\n"
+      "usage: thinslab acquire <shadow-maps|laser|dot-scan|bracket|gamma> [--camera sim|aravis:<ip>|v4l2:<device>]\n"
+      "       [--display <n>] [--laser <spec>] [--gamma-table <file>] [--resume] [kind options] OUTPUT\n"
       "       thinslab acquire <kind> --help lists the options of a kind (and of its simulated rig).\n";
   if (kind.empty() || kind == "--help" || kind == "-h") {
     std::cout << usage;
@@ -685,10 +769,11 @@ int RunAcquire(int argc, char** argv) {
   const bool sim = PeekOption(argc - 1, argv + 1, "camera", "sim") == "sim";
   if (kind == "shadow-maps") return AcquireShadowMaps(argc - 1, argv + 1, sim);
   if (kind == "laser") return AcquireLaser(argc - 1, argv + 1, sim);
-  if (kind == "dot-scan") return AcquireDisplaySession(argc - 1, argv + 1, sim, true);
-  if (kind == "bracket") return AcquireDisplaySession(argc - 1, argv + 1, sim, false);
+  if (kind == "dot-scan") return AcquireDisplaySession(argc - 1, argv + 1, sim, DisplayKind::kDotScan);
+  if (kind == "bracket") return AcquireDisplaySession(argc - 1, argv + 1, sim, DisplayKind::kBracket);
+  if (kind == "gamma") return AcquireDisplaySession(argc - 1, argv + 1, sim, DisplayKind::kGamma);
   std::cerr << "error: thinslab acquire: unknown session kind '" << kind
-            << "' (expected shadow-maps, laser, dot-scan or bracket)\n";
+            << "' (expected shadow-maps, laser, dot-scan, bracket or gamma)\n";
   return 2;
 }
 

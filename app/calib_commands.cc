@@ -21,6 +21,7 @@ int RunCalib(int argc, char** argv) {
       {"response", RunCalibResponse, "camera response from exposure brackets (Debevec, Robertson)"},
       {"hdr", RunCalibHdr, "merge exposure brackets into HDR radiance with variance"},
       {"flat", RunCalibFlat, "projector flat field for shadow maps"},
+      {"gamma", RunCalibGamma, "display gamma table from a display_gamma session (acquire gamma)"},
   };
   const std::string what = argc > 0 ? argv[0] : "";
   for (const Sub& sub : kSubs) {

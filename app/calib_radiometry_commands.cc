@@ -324,14 +324,11 @@ int RunCalibFlat(int argc, char** argv) {
   }
   if (!status.ok()) return Fail(status);
   Session session;
-  status = ReadCaptureForCommand(session_dir, allow_incomplete, &session);
-  if (!status.ok()) return Fail(status);
-  if (session.rig.cameras.empty()) return Fail(Status::Error(session_dir + ": rig.cameras: no camera"));
   CameraResponse response;
   std::string response_file;
-  status = LoadCameraResponse(session_dir, response_path, session.rig.cameras[0], &response, &response_file);
-  const bool have_response = !response_file.empty();
+  status = ReadCaptureAndResponse(session_dir, allow_incomplete, response_path, &session, &response, &response_file);
   if (!status.ok()) return Fail(status);
+  const bool have_response = !response_file.empty();
   Image flat;
   FlatFieldSummary summary;
   status = ComputeSessionFlatField(session_dir, session, have_response ? &response : nullptr, options, &flat, &summary);

@@ -4,6 +4,8 @@
 #include <iostream>
 
 #include "app/option_parser.h"
+#include "core/file.h"
+#include "core/session_io.h"
 
 namespace thinslab {
 
@@ -21,6 +23,15 @@ Status ReadCaptureForCommand(const std::string& session_dir, bool allow_incomple
   }
   if (completeness != nullptr) *completeness = c;
   return Status::Ok();
+}
+
+Status ReadCaptureAndResponse(const std::string& session_dir, bool allow_incomplete, const std::string& response_path,
+                              Session* session, CameraResponse* response, std::string* response_file) {
+  THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete, session));
+  if (session->rig.cameras.empty()) {
+    return Status::Error(JoinPath(session_dir, kSessionManifestName) + ": rig.cameras: no camera");
+  }
+  return LoadCameraResponse(session_dir, response_path, session->rig.cameras[0], response, response_file);
 }
 
 nlohmann::json CaptureSummaryJson(const CaptureCompleteness& c) {

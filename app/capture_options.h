@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calib/session_calibration.h"
 #include "core/session_recovery.h"
 
 namespace thinslab {
@@ -20,6 +21,12 @@ void AddIncompleteCaptureOption(OptionParser* parser, bool* allow_incomplete);
 // capture is announced on stderr.
 Status ReadCaptureForCommand(const std::string& session_dir, bool allow_incomplete, Session* session,
                              CaptureCompleteness* completeness = nullptr);
+
+// ReadCaptureForCommand, then the camera response that applies to the capture's first camera
+// (LoadCameraResponse: `response_path`, else SESSION/calib/response.json if present;
+// *response_file "" = linear). Errors: no camera, or a response of another camera.
+Status ReadCaptureAndResponse(const std::string& session_dir, bool allow_incomplete, const std::string& response_path,
+                              Session* session, CameraResponse* response, std::string* response_file);
 
 // {"complete": bool, "state": string or null, "usable_frames", "planned_frames",
 // "journaled_frames"} (docs/format.md section 9).

@@ -27,13 +27,14 @@ int RunCharts(int argc, char** argv);
 int RunBench(int argc, char** argv);    // app/bench_command.cc
 int RunAcquire(int argc, char** argv);  // app/acquire_commands.cc
 int RunSynth(int argc, char** argv);    // app/synth_commands.cc
-int RunCalib(int argc, char** argv);    // app/calib_commands.cc: dispatches to the six below.
+int RunCalib(int argc, char** argv);    // app/calib_commands.cc: dispatches to the seven below.
 int RunCalibCamera(int argc, char** argv);    // app/calib_geometry_commands.cc
 int RunCalibPose(int argc, char** argv);      // app/calib_geometry_commands.cc
 int RunCalibDots(int argc, char** argv);      // app/calib_geometry_commands.cc
 int RunCalibResponse(int argc, char** argv);  // app/calib_radiometry_commands.cc
 int RunCalibHdr(int argc, char** argv);       // app/calib_radiometry_commands.cc
 int RunCalibFlat(int argc, char** argv);      // app/calib_radiometry_commands.cc
+int RunCalibGamma(int argc, char** argv);     // app/calib_gamma_command.cc
 
 // Shared by `fit tau` and `demo`: reads the session, rectifies, fits and writes
 // <out_dir>/{tau.exr, tau_falsecolor.png, tau_plain_falsecolor.png, summary.json, summary.txt,

@@ -146,7 +146,7 @@ struct Session {
   int format_major = kSessionFormatMajor;
   int format_minor = kSessionFormatMinor;
   std::string name;
-  std::string kind;  // "shadow_map", "laser_lobe", "dot_scan", "exposure_bracket".
+  std::string kind;  // "shadow_map", "laser_lobe", "dot_scan", "exposure_bracket", "display_gamma".
   std::string created_utc;
   std::string software;  // Program that wrote the capture.
   RigInfo rig;

@@ -16,6 +16,7 @@
 #include "core/image.h"
 #include "core/status.h"
 #include "drivers/display.h"
+#include "drivers/display_gamma.h"
 #include "drivers/pattern_id.h"
 
 namespace thinslab {
@@ -33,32 +34,6 @@ struct PatternWindowOptions {
   bool fullscreen = true;
   int width_px = 0, height_px = 0;  // 0 = the display's current mode.
 };
-
-// Display gamma: monotonic table of (drive level, relative emitted light) pairs, both in [0, 1],
-// first (0, 0), last (1, 1). Emitted(drive) is the piecewise-linear interpolation.
-struct GammaTable {
-  std::vector<std::pair<double, double>> drive_to_light;
-  // Drive level in [0, 1] that emits `light` in [0, 1] (inverse interpolation).
-  double DriveForLight(double light) const;
-  double LightForDrive(double drive) const;
-};
-
-// Identity table {(0,0), (1,1)}.
-GammaTable IdentityGammaTable();
-// File format (docs/drivers.md): text, '#' comments, one "drive light" pair per line.
-Status ReadGammaTable(const std::string& path, GammaTable* table);
-Status WriteGammaTable(const std::string& path, const GammaTable& table);
-
-// Fits a gamma table from measured (drive level, camera signal) pairs taken by showing
-// "flat:<level>" patterns (GammaMeasurementPatterns) and recording a black-subtracted camera
-// mean. Model: signal = offset + scale * L(drive) with L monotonic, L(0) = 0, L(1) = 1. Repeated
-// levels are averaged, the result is made monotonic by isotonic regression (pool adjacent
-// violators) and normalised by its end points. Errors: fewer than 3 distinct levels, levels
-// outside [0, 1], no 0 or no 1 level, non-finite values, signal(1) <= signal(0).
-Status FitGammaTable(const std::vector<std::pair<double, double>>& level_signal, GammaTable* table);
-// The flat-level pattern ids of a gamma measurement: "flat:0", ..., "flat:1" with `steps`+1
-// evenly spaced drive levels.
-std::vector<std::string> GammaMeasurementPatterns(int steps);
 
 // Rounds a requested exposure to a whole number (>= 1) of refresh periods so every pixel of a
 // scanned display is integrated the same number of times. refresh_period_s <= 0 returns the

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include "core/camera_model.h"
 #include "core/math.h"
@@ -65,6 +66,12 @@ Status SimDotMonitorOptions::Check() const {
   if (render_supersample < 1) return err("render_supersample", "must be >= 1");
   if (!(electrons_per_radiance_us > 0)) return err("electrons_per_radiance_us", "must be > 0");
   if (!(initial_exposure_us > 0)) return err("initial_exposure_us", "must be > 0 us");
+  const Status transfer = display_transfer.Check();
+  if (!transfer.ok()) return err("display_transfer", transfer.message());
+  const auto& table = gamma_table.drive_to_light;
+  if (table.size() < 2 || table.front() != std::make_pair(0.0, 0.0) || table.back() != std::make_pair(1.0, 1.0)) {
+    return err("gamma_table", "must run from (0, 0) to (1, 1) (drivers/display_gamma.h)");
+  }
   std::string error;
   if (!sensor.Check(&error)) return err("sensor", error);
   return Status::Ok();
@@ -118,6 +125,7 @@ Status SimDotMonitor::ShowPattern(const std::string& pattern) {
   THINSLAB_RETURN_IF_ERROR(
       RasterizePattern(spec, options_.monitor_width_px, options_.monitor_height_px, options_.dot_radius_px, &levels)
           .WithContext("sim dot monitor: pattern '" + pattern + "'"));
+  ApplyDisplay(&levels);
   levels_ = std::move(levels);
   shown_pattern_ = pattern;
   shown_dots_.clear();
@@ -154,6 +162,23 @@ Status SimDotMonitor::ShowPattern(const std::string& pattern) {
     sources_ = BlockSources(&levels_, options_.dot_radiance);
   }
   return Status::Ok();
+}
+
+void SimDotMonitor::ApplyDisplay(Image* levels) const {
+  const SimDisplayTransfer& t = options_.display_transfer;
+  const auto& table = options_.gamma_table.drive_to_light;
+  const bool identity_table = table.size() == 2;  // Check(): then it is {(0, 0), (1, 1)}.
+  if (t.IsIdentity() && identity_table) return;   // The ideal display: levels are the light.
+  // Patterns hold few distinct levels (one for flats, a stamp's worth for dots): cache them.
+  std::map<float, float> light;
+  for (float& v : levels->data()) {
+    if (v <= 0) continue;  // Drive 0 emits nothing beyond black_radiance for any curve.
+    auto it = light.find(v);
+    if (it == light.end()) {
+      it = light.emplace(v, static_cast<float>(t.LightForLevel(v, options_.gamma_table))).first;
+    }
+    v = it->second;
+  }
 }
 
 std::vector<SimDotMonitor::PointSource> SimDotMonitor::BlockSources(const Image* levels, double radiance) const {

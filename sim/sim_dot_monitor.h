@@ -36,7 +36,9 @@
 #include "acquire/shadow_map_session.h"
 #include "drivers/camera.h"
 #include "drivers/display.h"
+#include "drivers/display_gamma.h"
 #include "sim/sensor_model.h"
+#include "sim/sim_display_transfer.h"
 #include "sim/slab_sample.h"
 
 namespace thinslab {
@@ -54,6 +56,14 @@ struct SimDotMonitorOptions {
   double dot_radius_px = 2.0;       // Radius of a displayed dot, monitor pixels.
   double dot_radiance = 1.0;        // Emitted radiance of a lit pixel ("relative radiance" units).
   double black_radiance = 0.0;      // CRT black level (radiance of an unlit pixel).
+  // The display between the requested linear level of a pattern pixel and the light it emits
+  // (sim/sim_display_transfer.h): a pixel asked for level l emits
+  //   black_radiance + dot_radiance * display_transfer.LightForLevel(l, gamma_table).
+  // The library default is an ideal linear display with an identity table, which is what the
+  // synthetic dot-scan sessions' ground truth ("dot_radiance x rasterised dot area") assumes;
+  // `thinslab acquire --camera sim` gives its display a gamma 2.2, 8-bit curve (docs/cli.md).
+  SimDisplayTransfer display_transfer;
+  GammaTable gamma_table = IdentityGammaTable();  // The table the driver applies (--gamma-table).
   double refresh_period_s = 1.0 / 85;
 
   // Camera: looks at `camera_target_in_sample` from `camera_distance_m`, tilted `camera_tilt_deg`
@@ -85,7 +95,8 @@ class SimDotMonitor : public Projector {
 
   // Projector: any id ParsePatternId accepts ("" black, "flat", "flat:<level>", "dot:<x>,<y>",
   // "dots:..."), rasterised by RasterizePattern; a pixel at level l emits
-  // black_radiance + l * dot_radiance. Unknown ids give an error naming the id.
+  // black_radiance + dot_radiance * display_transfer.LightForLevel(l, gamma_table) (l itself
+  // for the default linear display). Unknown ids give an error naming the id.
   Status ShowPattern(const std::string& pattern) override;
   double refresh_period_s() const override { return options_.refresh_period_s; }
 
@@ -139,10 +150,12 @@ class SimDotMonitor : public Projector {
   MonitorInfo monitor_;
   std::unique_ptr<SimCamera> camera_;
   std::string shown_pattern_;
-  Image levels_;  // Linear emitted level in [0, 1] per monitor pixel (drivers/pattern_id.h).
+  Image levels_;  // Emitted light in [0, 1] per monitor pixel: the pattern's levels through the display.
   // Per camera pixel: screen point (monitor px) seen by its centre and the 2x2 Jacobian
   // d(screen)/d(pixel); built on the first render (the geometry is fixed).
   void BuildScreenMap() const;
+  // Rasterised levels -> emitted light (display_transfer, gamma_table), in place.
+  void ApplyDisplay(Image* levels) const;
   mutable std::vector<double> screen_map_;
   std::vector<Eigen::Vector2d> shown_dots_;
 
