@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <thread>
 #include <iostream>
@@ -406,6 +407,18 @@ void AddSyncOptions(OptionParser* parser, DisplaySyncOptions* sync) {
                     "camera read noise assumed by the synchronisation (the simulated rigs use their sensor's if larger) [DN]");
 }
 
+// The simulated cameras expose whole steps (sim/sensor_model.h), like real sensors' line periods.
+void AddSimExposureStepOption(OptionParser* parser, SimSensorOptions* sensor) {
+  parser->AddDouble("sim-exposure-step-us", &sensor->exposure_step_us,
+                    "granularity of the simulated camera's exposure: the request is rounded to a multiple [us]");
+}
+
+Status CheckSimExposureStep(const SimSensorOptions& sensor) {
+  if (sensor.exposure_step_us > 0 && std::isfinite(sensor.exposure_step_us)) return Status::Ok();
+  return Status::Error("thinslab acquire: option --sim-exposure-step-us = " + std::to_string(sensor.exposure_step_us) +
+                       ": expected a step > 0 us");
+}
+
 int AcquireShadowMaps(int argc, char** argv, bool sim) {
   CommonOptions common;
   SyntheticShadowSessionOptions simulated;  // Rig options (sim) and the session script's options.
@@ -416,6 +429,7 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
   AddCommonOptions(&parser, &common, sim);
   if (sim) {
     AddSimShadowOptions(&parser, &simulated, &board_distance_mm, &tau_path);
+    AddSimExposureStepOption(&parser, &simulated.rig.sensor);
   } else {
     parser.AddInt("frames", &session.frames_per_state, "frames per state (shadow, reference)");
     parser.AddInt("dark-frames", &session.dark_frames, "dark frames (projector off)");
@@ -424,6 +438,7 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
   AddSyncOptions(&parser, &session.sync);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) return Help(parser);
+  if (status.ok()) status = CheckSimExposureStep(simulated.rig.sensor);
   if (!status.ok()) return Fail(status);
   session.sync.max_retries = common.max_retries;
   std::string error;
@@ -492,6 +507,7 @@ int AcquireLaser(int argc, char** argv, bool sim) {
     parser.AddInt("camera-height-px", &simulated.camera_height_px, "camera image height");
     parser.AddBool("noise", &simulated.sensor.enable_noise, "simulate shot and read noise");
     parser.AddUint64("seed", &simulated.seed, "seed of every random choice");
+    AddSimExposureStepOption(&parser, &simulated.sensor);
   }
   parser.AddString("exposures-us", &exposures, "bracket exposures, comma-separated (default 20,200,...,2000000)");
   parser.AddInt("frames-per-exposure", &session.frames_per_exposure, "frames per bracket exposure");
@@ -501,6 +517,7 @@ int AcquireLaser(int argc, char** argv, bool sim) {
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) return Help(parser);
   if (status.ok() && !exposures.empty()) status = ParseExposureList(exposures, "exposures-us", &session.exposure_times_us);
+  if (status.ok()) status = CheckSimExposureStep(simulated.sensor);
   if (!status.ok()) return Fail(status);
   session.sync.max_retries = common.max_retries;
   std::string error;
@@ -601,9 +618,11 @@ void AddSimMonitorOptions(OptionParser* parser, SimDotMonitorOptions* monitor, S
   parser->AddInt("camera-height-px", &monitor->camera_height_px, "simulated camera height [px]");
   parser->AddBool("noise", &monitor->sensor.enable_noise, "simulate shot and read noise");
   parser->AddUint64("seed", &monitor->seed, "seed of the sensor noise");
+  AddSimExposureStepOption(parser, &monitor->sensor);
 }
 
 Status ApplySimDisplay(const SimDisplayText& display, SimDotMonitorOptions* monitor) {
+  THINSLAB_RETURN_IF_ERROR(CheckSimExposureStep(monitor->sensor));
   THINSLAB_RETURN_IF_ERROR(ParseSimDisplayTransfer(display.transfer, "sim-display-transfer", &monitor->display_transfer));
   if (!(display.black_fraction >= 0 && display.black_fraction < 1)) {
     return Status::Error("thinslab acquire: option --sim-display-black = " + std::to_string(display.black_fraction) +

@@ -67,7 +67,8 @@ Status SimulateBracket(const BracketSimOptions& options, SimulatedBracket* brack
   bracket->scene_e_per_us = MakeBracketScene(options);
   const Image& scene = bracket->scene_e_per_us;
   uint64_t stream = options.seed * 1000003ULL;
-  for (double t : options.exposures_us) {
+  for (double requested_us : options.exposures_us) {
+    const double t = options.sensor.AppliedExposureUs(requested_us);  // What the camera reports.
     Image electrons(scene.width(), scene.height());
     Image ambient(scene.width(), scene.height());
     for (size_t i = 0; i < scene.data().size(); ++i) {

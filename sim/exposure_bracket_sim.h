@@ -26,7 +26,7 @@ struct BracketSimOptions {
   double texture_amplitude = 0.2;  // Relative amplitude of the texture, [0, 1).
   // Extra irradiance present in every frame, dark frames included (ambient light); e-/us.
   double ambient_e_per_us = 0;
-  std::vector<double> exposures_us = {30, 120, 480, 1920, 7680};
+  std::vector<double> exposures_us = {30, 120, 480, 1920, 7680};  // Requested; the sensor rounds them.
   int frames_per_exposure = 1;
   int dark_frames_per_exposure = 0;  // Dark frames (scene light off, ambient on) per exposure.
   SimSensorOptions sensor;
@@ -41,7 +41,7 @@ Image MakeBracketScene(const BracketSimOptions& options);
 struct SimulatedBracket {
   Image scene_e_per_us;             // MakeBracketScene().
   std::vector<Image> frames;        // Raw DN (black level included), frames_per_exposure per exposure, in order.
-  std::vector<double> frame_exposures_us;
+  std::vector<double> frame_exposures_us;  // Applied: sensor.AppliedExposureUs(requested).
   std::vector<Image> darks;         // Raw DN, dark_frames_per_exposure per exposure.
   std::vector<double> dark_exposures_us;
 };

@@ -19,11 +19,17 @@ bool SimSensorOptions::Check(std::string* error) const {
     msg << "SimSensorOptions::response_gamma = " << response_gamma << ". Violated constraint: (0, 10)";
   } else if (!(black_level_dn >= 0 && black_level_dn < (1 << bit_depth) / 2)) {
     msg << "SimSensorOptions::black_level_dn = " << black_level_dn << ". Violated constraint: [0, 2^bit_depth / 2)";
+  } else if (!(exposure_step_us > 0 && std::isfinite(exposure_step_us))) {
+    msg << "SimSensorOptions::exposure_step_us = " << exposure_step_us << ". Violated constraint: > 0";
   } else {
     return true;
   }
   *error = msg.str();
   return false;
+}
+
+double SimSensorOptions::AppliedExposureUs(double requested_us) const {
+  return exposure_step_us * std::max(1.0, std::round(requested_us / exposure_step_us));
 }
 
 namespace {

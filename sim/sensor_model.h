@@ -30,12 +30,19 @@ struct SimSensorOptions {
   bool enable_noise = true;
   SimResponseCurve response = SimResponseCurve::kLinear;
   double response_gamma = 2.2;  // Exponent of kGamma / kSCurve; > 0.
+  // Granularity of the exposure control: real sensors expose whole line periods (typically
+  // 10-40 us), so the applied exposure is the request rounded to a multiple of this, at least
+  // one step. 1 us by default (whole microseconds).
+  double exposure_step_us = 1;
 
   // v = f(s) for the configured curve: f(0) = 0, f(1) = 1, strictly increasing on [0, 1],
   // continued linearly below 0 (noise under black) with the slope at 0.
   double ResponseCurve(double s) const;
   // s = f^-1(v), by bisection on [0, 1] (linear continuation outside).
   double InverseResponseCurve(double v) const;
+
+  // The exposure the sensor applies for a request: round(requested / step) steps, at least 1.
+  double AppliedExposureUs(double requested_us) const;
 
   double gain_e_per_dn() const { return full_well_e / ((1 << bit_depth) - 1 - black_level_dn); }
   double saturation_dn() const { return (1 << bit_depth) - 1; }

@@ -38,8 +38,7 @@ Status SimBoardCamera::SetExposure(double requested_us, double* applied_us) {
   if (!(requested_us > 0)) {
     return Status::Error("camera '" + info_.id + "' (sim): exposure must be > 0 us, got " + std::to_string(requested_us));
   }
-  // Like real sensors, the sim applies whole microseconds.
-  exposure_us_ = std::max(1.0, std::round(requested_us));
+  exposure_us_ = options_.sensor.AppliedExposureUs(requested_us);
   *applied_us = exposure_us_;
   return Status::Ok();
 }

@@ -24,7 +24,7 @@ class SimDotMonitor::SimCamera : public Camera {
       return Status::Error("camera '" + info_.id + "' (sim dot monitor): exposure must be > 0 us, got " +
                            std::to_string(requested_us));
     }
-    exposure_us_ = std::max(1.0, std::round(requested_us));  // Whole microseconds, like real sensors.
+    exposure_us_ = rig_->options().sensor.AppliedExposureUs(requested_us);
     *applied_us = exposure_us_;
     return Status::Ok();
   }

@@ -339,6 +339,44 @@ TEST_F(CliAcquireTest, LaserSessionKilledWithTheLaserOnAndResumedHasTheFramesOfA
   EXPECT_EQ(events, (std::vector<std::string>{"started", "resumed", "completed"}));
 }
 
+// An exposure bracket (dark then lit, display-synchronised) killed in its lit half and
+// resumed, on a simulated camera that exposes whole 37 us steps: the frames are those of the
+// uninterrupted run, and every frame records the exposure the camera applied (a multiple of
+// 37 us, 1 us off the requested refresh multiple), not the one requested.
+TEST_F(CliAcquireTest, BracketKilledMidScanAndResumedHasTheFramesOfAnUninterruptedRun) {
+  const std::string reference = *dir_ / "bracket_reference", resumed = *dir_ / "bracket_resumed";
+  auto args = [](const std::string& out) {
+    return "acquire bracket --quiet --camera-width-px 64 --camera-height-px 48 --frames-per-exposure 2"
+           " --sim-exposure-step-us 37 --sim-realtime --seed 6 " + out;
+  };
+  constexpr int kDark = 5 * 2, kPlanned = 2 * kDark;  // Default bracket: 5 exposures.
+  const RunResult ref = RunThinslab(args(reference));
+  ASSERT_EQ(ref.exit_code, 0) << ref.output;
+
+  const int frames_at_kill = RunAndKillAfter(args(resumed), resumed, kDark + 2);
+  ASSERT_GE(frames_at_kill, kDark + 2) << "the acquisition finished before it could be killed";
+  ASSERT_LT(frames_at_kill, kPlanned) << "killed too late to test a resume";
+  const RunResult again = RunThinslab(args(resumed) + " --resume");
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+
+  Session b;
+  ExpectTheFramesOfTheUninterruptedRun(reference, resumed, kPlanned, "", &b);
+  EXPECT_EQ(b.UsableFrames("bracket").size(), static_cast<size_t>(kDark));
+  EXPECT_EQ(b.UsableFrames("dark").size(), static_cast<size_t>(kDark));
+  const double refresh_us = 1e6 / 85;  // The simulated monitor's refresh period.
+  for (const FrameRecord& f : b.frames) {
+    const double steps = f.exposure_time_us / 37;
+    EXPECT_NEAR(steps, std::round(steps), 1e-9) << "frame " << f.index << ": " << f.exposure_time_us << " us";
+    const double periods = std::round(f.exposure_time_us / refresh_us);
+    EXPECT_GT(std::abs(f.exposure_time_us - periods * refresh_us), 0.1) << "frame " << f.index << " has the request";
+    EXPECT_LT(std::abs(f.exposure_time_us - periods * refresh_us), 18.5) << "frame " << f.index;
+  }
+  const RunResult zero_step = RunThinslab("acquire bracket --sim-exposure-step-us 0 " + *dir_ / "zero_step");
+  EXPECT_NE(zero_step.exit_code, 0);
+  EXPECT_NE(zero_step.output.find("--sim-exposure-step-us"), std::string::npos) << zero_step.output;
+  EXPECT_FALSE(fs::exists(*dir_ / "zero_step"));
+}
+
 TEST_F(CliAcquireTest, UnknownKindAndOptionAreRefused) {
   RunResult r = RunThinslab("acquire holograms " + *dir_ / "h");
   EXPECT_NE(r.exit_code, 0);
