@@ -283,6 +283,7 @@ std::string SynthesisSummary::ToJson() const {
       e["candidates_evaluated"] = l.quilting.candidates_evaluated;
       e["source_zero_fraction"] = l.quilting.source_zero_fraction;
       e["quilted_zero_fraction"] = l.quilting.quilted_zero_fraction;
+      e["tilt_capped_patches"] = l.quilting.tilt_capped_patches;
     } else {
       e["copies"] = nlohmann::json::array();
       for (const auto& c : l.copies) {

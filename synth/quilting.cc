@@ -9,6 +9,8 @@
 #include <sstream>
 #include <vector>
 
+#include "core/math.h"
+
 namespace thinslab {
 
 bool QuiltingOptions::Check(std::string* error) const {
@@ -23,6 +25,10 @@ bool QuiltingOptions::Check(std::string* error) const {
     e << "QuiltingOptions::variance_tolerance = " << variance_tolerance << ". Violated constraint: in [0, 10]";
   else if (max_candidates < 0)
     e << "QuiltingOptions::max_candidates = " << max_candidates << ". Violated constraint: >= 0";
+  else if (!(max_tilt > 0 && max_tilt <= 20))
+    e << "QuiltingOptions::max_tilt = " << max_tilt << ". Violated constraint: in (0, 20]";
+  else if (!(mass_feedback >= 0 && mass_feedback <= 10))
+    e << "QuiltingOptions::mass_feedback = " << mass_feedback << ". Violated constraint: in [0, 10]";
   if (e.str().empty()) return true;
   *error = e.str();
   return false;
@@ -64,6 +70,48 @@ std::vector<int> MinErrorCut(const std::vector<double>& err, int lines, int widt
     cut[l - 1] = x;
   }
   return cut;
+}
+
+// Whether patch pixel (x, y) takes the new patch, given the cuts through its left and top
+// overlap strips.
+bool TakesNew(int x, int y, int overlap, bool left, bool top, const std::vector<int>& cut_left,
+              const std::vector<int>& cut_top) {
+  const bool take_left = !left || x >= overlap || x >= cut_left[y];
+  const bool take_top = !top || y >= overlap || y >= cut_top[x];
+  return take_left && take_top;
+}
+
+// Not in Efros-Freeman: exponential tilting of a uniform draw. Returns the weights
+// w_q = e^{lambda u_q} / sum_r e^{lambda u_r} with sum_q w_q u_q = 0, the distribution closest
+// to uniform in Kullback-Leibler divergence whose mean of u is 0 (the I-projection; Csiszar
+// 1975). lambda is limited to [-max_lambda, max_lambda]; *capped says whether the limit was
+// reached (then the weighted mean of u is the closest to 0 the limit allows).
+void SolveTilt(const std::vector<double>& u, double max_lambda, std::vector<double>* weights, bool* capped) {
+  auto mean_at = [&](double lambda) {
+    double top = -std::numeric_limits<double>::infinity();
+    for (double v : u) top = std::max(top, lambda * v);
+    double z = 0, m = 0;
+    weights->resize(u.size());
+    for (size_t q = 0; q < u.size(); ++q) {
+      (*weights)[q] = std::exp(lambda * u[q] - top);
+      z += (*weights)[q];
+      m += (*weights)[q] * u[q];
+    }
+    for (double& w : *weights) w /= z;
+    return m / z;
+  };
+  // The weighted mean of u increases with lambda (its derivative is the weighted variance).
+  double lo = -max_lambda, hi = max_lambda;
+  *capped = false;
+  if (mean_at(0) == 0) return;  // Uniform already (also when every u is 0).
+  *capped = true;
+  if (mean_at(lo) >= 0 || mean_at(hi) <= 0) return;  // mean_at(hi) left the weights at the cap.
+  *capped = false;
+  for (int it = 0; it < 60; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (mean_at(mid) < 0 ? lo : hi) = mid;
+  }
+  mean_at(0.5 * (lo + hi));
 }
 
 }  // namespace
@@ -127,6 +175,7 @@ Status QuiltTexture(const Image& source, int width, int height, const QuiltingOp
   mean /= src.size();
   for (float v : src) var += (v - mean) * (v - mean);
   var /= src.size();
+  const double source_mean = mean;
   // Canvas of whole patches covering the output; cropped at the end.
   const int nx = width <= P ? 1 : (width - O + S - 1) / S;
   const int ny = height <= P ? 1 : (height - O + S - 1) / S;
@@ -142,8 +191,37 @@ Status QuiltTexture(const Image& source, int width, int height, const QuiltingOp
   std::vector<int64_t> candidates(num_candidates);
   std::vector<double> errors(num_candidates);
   std::vector<int64_t> qualifying;
+  std::vector<double> masses, weights;
   std::vector<double> strip;
   QuiltingSummary local;
+  double canvas_mass = 0;
+  int64_t written_pixels = 0;
+  std::vector<int> cut_left, cut_top;
+  // Boundary cuts of the patch from source (sx, sy) at canvas (px, py) through the left
+  // strip (one column per row) and the top strip (one row per column).
+  auto BoundaryCuts = [&](int sx, int sy, bool left, bool top, int px, int py, std::vector<int>* cl,
+                          std::vector<int>* ct) {
+    auto diff2 = [&](int x, int y) {
+      return std::pow(src[static_cast<size_t>(sy + y) * sw + sx + x] - canvas[static_cast<size_t>(py + y) * cw + px + x],
+                      2);
+    };
+    cl->clear();
+    ct->clear();
+    if (left) {
+      strip.assign(static_cast<size_t>(P) * O, 0.0);
+      for (int y = 0; y < P; ++y) {
+        for (int x = 0; x < O; ++x) strip[y * O + x] = diff2(x, y);
+      }
+      *cl = MinErrorCut(strip, P, O);
+    }
+    if (top) {
+      strip.assign(static_cast<size_t>(P) * O, 0.0);
+      for (int x = 0; x < P; ++x) {
+        for (int y = 0; y < O; ++y) strip[x * O + y] = diff2(x, y);
+      }
+      *ct = MinErrorCut(strip, P, O);
+    }
+  };
 
   for (int j = 0; j < ny; ++j) {
     for (int i = 0; i < nx; ++i) {
@@ -191,36 +269,63 @@ Status QuiltTexture(const Image& source, int width, int height, const QuiltingOp
         for (int64_t k = 0; k < num_candidates; ++k) {
           if (errors[k] <= threshold) qualifying.push_back(candidates[k]);
         }
-        std::uniform_int_distribution<size_t> pick(0, qualifying.size() - 1);
-        chosen = qualifying[pick(rng)];
+        if (options.selection == QuiltingSelection::kSsd) {
+          std::uniform_int_distribution<size_t> pick(0, qualifying.size() - 1);
+          chosen = qualifying[pick(rng)];
+        } else {
+          // Not in Efros-Freeman: mass-matched selection (docs/models/contamination_synthesis.md,
+          // Sec. 2). delta_q, the tau mass candidate q adds to the canvas once joined along its
+          // own boundary cut, is on average below the source's for the pixels it adds (SSD
+          // favours low-dust overlaps). The draw among the qualifying candidates is tilted so
+          // that the expected delta is the source mean times the new pixels, plus
+          // mass_feedback times the canvas's running deficit.
+          const int new_pixels = P * P - overlap_pixels;
+          const double target =
+              source_mean * new_pixels + options.mass_feedback * (source_mean * written_pixels - canvas_mass);
+          masses.resize(qualifying.size());
+          double sum = 0, sum_sq = 0;
+          for (size_t q = 0; q < qualifying.size(); ++q) {
+            const int sx = static_cast<int>(qualifying[q] % cand_x), sy = static_cast<int>(qualifying[q] / cand_x);
+            BoundaryCuts(sx, sy, left, top, px, py, &cut_left, &cut_top);
+            double delta = 0;
+            for (int y = 0; y < P; ++y) {
+              for (int x = 0; x < P; ++x) {
+                if (!TakesNew(x, y, O, left, top, cut_left, cut_top)) continue;
+                delta += src[static_cast<size_t>(sy + y) * sw + sx + x] - canvas[static_cast<size_t>(py + y) * cw + px + x];
+              }
+            }
+            masses[q] = delta - target;
+            sum += masses[q];
+            sum_sq += masses[q] * masses[q];
+          }
+          // u_q in units of the spread of delta over the qualifying set, so that max_tilt
+          // bounds the largest weight ratio per unit of spread whatever the texture's scale.
+          const double n_q = static_cast<double>(qualifying.size());
+          const double spread = std::sqrt(std::max(0.0, sum_sq / n_q - Sqr(sum / n_q)));
+          for (double& m : masses) m = spread > 0 ? m / spread : 0.0;
+          bool capped = false;
+          SolveTilt(masses, options.max_tilt, &weights, &capped);
+          local.tilt_capped_patches += capped;
+          // Inverse-CDF draw from 53 random bits (the same on every standard library).
+          const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+          double acc = 0;
+          size_t q = 0;
+          for (; q + 1 < qualifying.size(); ++q) {
+            acc += weights[q];
+            if (u < acc) break;
+          }
+          chosen = qualifying[q];
+        }
       }
       const int sx = static_cast<int>(chosen % cand_x), sy = static_cast<int>(chosen / cand_x);
-      auto new_value = [&](int x, int y) { return src[static_cast<size_t>(sy + y) * sw + sx + x]; };
-      auto old_value = [&](int x, int y) { return canvas[static_cast<size_t>(py + y) * cw + px + x]; };
-      // Boundary cuts through the left strip (one column per row) and the top strip (one
-      // row per column).
-      std::vector<int> cut_left, cut_top;
-      if (left) {
-        strip.assign(static_cast<size_t>(P) * O, 0.0);
-        for (int y = 0; y < P; ++y) {
-          for (int x = 0; x < O; ++x) strip[y * O + x] = std::pow(new_value(x, y) - old_value(x, y), 2);
-        }
-        cut_left = MinErrorCut(strip, P, O);
-      }
-      if (top) {
-        strip.assign(static_cast<size_t>(P) * O, 0.0);
-        for (int x = 0; x < P; ++x) {
-          for (int y = 0; y < O; ++y) strip[x * O + y] = std::pow(new_value(x, y) - old_value(x, y), 2);
-        }
-        cut_top = MinErrorCut(strip, P, O);
-      }
+      BoundaryCuts(sx, sy, left, top, px, py, &cut_left, &cut_top);
       for (int y = 0; y < P; ++y) {
         for (int x = 0; x < P; ++x) {
-          const bool take_left = !left || x >= O || x >= cut_left[y];
-          const bool take_top = !top || y >= O || y >= cut_top[x];
-          if (!(take_left && take_top)) continue;
+          if (!TakesNew(x, y, O, left, top, cut_left, cut_top)) continue;
           const size_t at = static_cast<size_t>(py + y) * cw + px + x;
-          canvas[at] = new_value(x, y);
+          if (ids[at] < 0) ++written_pixels;
+          canvas_mass += src[static_cast<size_t>(sy + y) * sw + sx + x] - canvas[at];
+          canvas[at] = src[static_cast<size_t>(sy + y) * sw + sx + x];
           ids[at] = id;
         }
       }
