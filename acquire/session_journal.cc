@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "acquire/progress.h"
+#include "acquire/session_lock.h"
 #include "core/file.h"
 #include "core/session_io.h"
 
@@ -28,6 +29,14 @@ void RemoveStaleTemporaries(const std::string& session_dir) {
     }
   }
   for (const auto& p : stale) fs::remove(p, ec);
+}
+
+bool OnlyTheLockIn(const std::string& dir) {
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    if (entry.path().filename() != kSessionLockName) return false;
+  }
+  return !ec;
 }
 
 void AddEvent(Session* session, const std::string& event, const std::string& device, const std::string& message) {
@@ -130,14 +139,20 @@ Status RunAcquisition(const AcquisitionRunOptions& options, const Session& heade
     THINSLAB_RETURN_IF_ERROR(ValidateSession(check, dir).WithContext("session header"));
   }
   std::error_code ec;
+  SessionFolderLock lock;  // Held until the run ends (declared before the writer: released after it).
   SessionWriter writer;
   SessionWriterOptions writer_options = options.writer;
   writer_options.journal = true;  // The durable record of every frame (docs/acquisition.md).
   if (!options.resume) {
-    if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
+    const auto refuse_non_empty = [&]() {
       return Status::Error(dir + ": output session folder exists and is not empty (add --resume to continue the "
                                  "capture in it)");
-    }
+    };
+    // Checked before the lock, so that a folder that is not ours is not touched ...
+    if (fs::exists(dir, ec) && !OnlyTheLockIn(dir)) return refuse_non_empty();
+    THINSLAB_RETURN_IF_ERROR(lock.Acquire(dir));
+    // ... and again under it: another run may have started between the check and the lock.
+    if (!OnlyTheLockIn(dir)) return refuse_non_empty();
     Session start = header;
     start.frames.clear();
     start.acquisition = AcquisitionInfo();
@@ -150,6 +165,7 @@ Status RunAcquisition(const AcquisitionRunOptions& options, const Session& heade
     THINSLAB_RETURN_IF_ERROR(writer.AppendJournalLine(EventLine(start.acquisition.events.back())));
   } else {
     if (!FileExists(manifest)) return Status::Error(dir + ": nothing to resume (no " + kSessionManifestName + ")");
+    THINSLAB_RETURN_IF_ERROR(lock.Acquire(dir));
     RemoveStaleTemporaries(dir);
     THINSLAB_RETURN_IF_ERROR(writer.Open(dir, header, writer_options));
     Session* s = writer.mutable_session();
@@ -239,6 +255,32 @@ Status RunAcquisition(const AcquisitionRunOptions& options, const Session& heade
     return status;
   }
   return saved;
+}
+
+Status FoldJournalIntoManifest(const std::string& session_dir, JournalFoldResult* result) {
+  *result = JournalFoldResult();
+  const std::string manifest = JoinPath(session_dir, kSessionManifestName);
+  if (!FileExists(manifest)) return Status::Error(session_dir + ": not a capture session (no " + kSessionManifestName + ")");
+  SessionFolderLock lock;
+  THINSLAB_RETURN_IF_ERROR(lock.Acquire(session_dir));
+  Session before;
+  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &before));
+  if (!before.acquisition.present) {
+    return Status::Error(manifest + ": no \"acquisition\" record: the session was not written by `thinslab acquire` "
+                                    "and has no journal to fold");
+  }
+  // The same repair a resume makes before it captures: temporaries and frame files of a killed
+  // write go, a journal line the kill cut short is dropped, the journaled records are taken.
+  RemoveStaleTemporaries(session_dir);
+  SessionWriter writer;
+  SessionWriterOptions writer_options;
+  writer_options.journal = true;
+  THINSLAB_RETURN_IF_ERROR(writer.Open(session_dir, before, writer_options));
+  result->frames = static_cast<int>(writer.session().frames.size());
+  result->folded_frames = result->frames - static_cast<int>(before.frames.size());
+  result->state = writer.session().acquisition.state;
+  if (result->folded_frames > 0) THINSLAB_RETURN_IF_ERROR(writer.Save());
+  return Status::Ok();
 }
 
 }  // namespace thinslab

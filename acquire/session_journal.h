@@ -104,4 +104,17 @@ using SessionScript = std::function<Status(Camera* camera, SessionWriter* writer
 Status RunAcquisition(const AcquisitionRunOptions& options, const Session& header, Camera* camera,
                       const SessionScript& script, AcquisitionResult* result);
 
+// `thinslab acquire fold-journal`: writes into session.json the frame records that only
+// journal.log holds (the recovery rule of docs/format.md 10.2), without the devices and without
+// capturing, so that tools which read session.json alone see every frame of a killed capture.
+// Takes the session folder's lock (refused while a capture runs in it) and repairs what a kill
+// leaves as a resume does; the acquisition state and events are kept as they are.
+struct JournalFoldResult {
+  int folded_frames = 0;  // Records taken from the journal (0: session.json had them all).
+  int frames = 0;         // Records in session.json now.
+  std::string state;      // acquisition.state, unchanged.
+};
+Status FoldJournalIntoManifest(const std::string& session_dir, JournalFoldResult* result);
+
 }  // namespace thinslab
+

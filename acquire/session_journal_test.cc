@@ -5,6 +5,7 @@
 #include "acquire/session_journal.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <set>
@@ -12,6 +13,7 @@
 
 #include "acquire/progress.h"
 #include "acquire/capture_with_retries.h"
+#include "acquire/session_lock.h"
 #include "core/file.h"
 #include "core/session_io.h"
 #include "tests/testing/temp_dir.h"
@@ -228,6 +230,53 @@ TEST(AcquisitionRun, ResumeRemovesTemporariesOfAKilledWrite) {
   CountingFakeCamera camera;
   ASSERT_TRUE(RunShadow(dir / "s", true, "p", &camera, &result).ok());
   EXPECT_FALSE(FileExists(dir / "s/frames/cam0/dark/0002.png.tmp-123"));
+}
+
+TEST(AcquisitionRun, AFolderLockedByAnotherRunIsRefusedAndLeftUntouched) {
+  TempDir dir;
+  AcquisitionResult result;
+  CountingFakeCamera dying(3);
+  ASSERT_FALSE(RunShadow(dir / "s", false, "p", &dying, &result).ok());
+  // What a kill mid-write leaves, and a running capture is still writing: a temporary and a
+  // journal line without its newline. A second process must not "repair" them.
+  ASSERT_TRUE(WriteFileAtomically(dir / "s/frames/cam0/dark/0009.png.tmp-77", "being written").ok());
+  { std::ofstream(dir / "s/journal.log", std::ios::app) << "2026-12-02T00:00:00.000Z frame 6 ok capt"; }
+  std::string journal_before;
+  ASSERT_TRUE(ReadFileToString(dir / "s/journal.log", &journal_before).ok());
+
+  SessionFolderLock running;  // Another capture in the folder (here: this process).
+  ASSERT_TRUE(running.Acquire(dir / "s").ok());
+  const std::string in_use = "in use by another thinslab acquire (process " + std::to_string(::getpid()) + ")";
+  CountingFakeCamera camera;
+  Status status = RunShadow(dir / "s", true, "p", &camera, &result);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find(dir / "s"), std::string::npos) << status.message();
+  EXPECT_NE(status.message().find(in_use), std::string::npos) << status.message();
+  JournalFoldResult fold;
+  status = FoldJournalIntoManifest(dir / "s", &fold);
+  EXPECT_NE(status.message().find(in_use), std::string::npos) << status.message();
+  SessionFolderLock second;
+  EXPECT_NE(second.Acquire(dir / "s").message().find(in_use), std::string::npos);
+  EXPECT_EQ(camera.statistics().at("completed_buffers"), 0);
+  EXPECT_TRUE(FileExists(dir / "s/frames/cam0/dark/0009.png.tmp-77"));
+  std::string journal_after;
+  ASSERT_TRUE(ReadFileToString(dir / "s/journal.log", &journal_after).ok());
+  EXPECT_EQ(journal_after, journal_before);
+
+  // A new session whose folder another run has just locked (it holds only the lock file).
+  SessionFolderLock other;
+  ASSERT_TRUE(other.Acquire(dir / "new").ok());
+  status = RunShadow(dir / "new", false, "p", &camera, &result);
+  EXPECT_NE(status.message().find(in_use), std::string::npos) << status.message();
+  EXPECT_FALSE(FileExists(dir / "new/session.json"));
+  other.Release();
+  // Once released (the holder ended or was killed), the folder is ours.
+  ASSERT_TRUE(RunShadow(dir / "new", false, "p", &camera, &result).ok());
+  running.Release();
+  CountingFakeCamera healthy;
+  status = RunShadow(dir / "s", true, "p", &healthy, &result);
+  ASSERT_TRUE(status.ok()) << status.message();
+  EXPECT_FALSE(FileExists(dir / "s/frames/cam0/dark/0009.png.tmp-77"));
 }
 
 TEST(AcquisitionRun, ReaderRefusesAnUnknownAcquisitionState) {

@@ -773,6 +773,31 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
                 &tracker);
 }
 
+int FoldJournal(int argc, char** argv) {
+  std::string session_dir;
+  OptionParser parser("acquire fold-journal");
+  parser.AddPositional("OUTPUT", &session_dir, "session folder of a running-then-killed or ended `thinslab acquire`");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  JournalFoldResult fold;
+  if (status.ok()) status = FoldJournalIntoManifest(session_dir, &fold);
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  const std::string manifest = JoinPath(session_dir, kSessionManifestName);
+  if (fold.folded_frames == 0) {
+    std::cout << manifest << ": already holds every journaled frame (" << fold.frames << "); nothing written\n";
+  } else {
+    std::cout << manifest << ": " << fold.folded_frames << " frames folded in from " << kSessionJournalName << " ("
+              << fold.frames << " in all; state '" << fold.state << "' kept)\n";
+  }
+  return 0;
+}
+
 }  // namespace
 
 int RunAcquire(int argc, char** argv) {
@@ -780,11 +805,13 @@ int RunAcquire(int argc, char** argv) {
   const char* usage =
       "usage: thinslab acquire <shadow-maps|laser|dot-scan|bracket|gamma> [--camera sim|aravis:<ip>|v4l2:<device>]\n"
       "       [--display <n>] [--laser <spec>] [--gamma-table <file>] [--resume] [kind options] OUTPUT\n"
+      "       thinslab acquire fold-journal OUTPUT writes the journaled frames of a killed capture into session.json.\n"
       "       thinslab acquire <kind> --help lists the options of a kind (and of its simulated rig).\n";
   if (kind.empty() || kind == "--help" || kind == "-h") {
     std::cout << usage;
     return kind.empty() ? 2 : 0;
   }
+  if (kind == "fold-journal") return FoldJournal(argc - 1, argv + 1);
   const bool sim = PeekOption(argc - 1, argv + 1, "camera", "sim") == "sim";
   if (kind == "shadow-maps") return AcquireShadowMaps(argc - 1, argv + 1, sim);
   if (kind == "laser") return AcquireLaser(argc - 1, argv + 1, sim);

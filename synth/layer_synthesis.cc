@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "synth/layer_synthesis.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -70,6 +71,44 @@ Status ReadNumber(const nlohmann::json& j, const std::string& where, const std::
   return Status::Ok();
 }
 
+Status ReadBool(const nlohmann::json& j, const std::string& where, const std::string& key, bool* value) {
+  if (!j.contains(key)) return Status::Ok();
+  if (!j[key].is_boolean()) return Status::Error(where + "." + key + " must be true or false");
+  *value = j[key].get<bool>();
+  return Status::Ok();
+}
+
+Status ReadSelection(const nlohmann::json& j, const std::string& where, QuiltingSelection* selection) {
+  if (!j.contains("selection")) return Status::Ok();
+  const auto& v = j["selection"];
+  if (v == "mass_matched") {
+    *selection = QuiltingSelection::kMassMatched;
+  } else if (v == "ssd") {
+    *selection = QuiltingSelection::kSsd;
+  } else {
+    return Status::Error(where + ".selection = " + v.dump() + ": must be \"mass_matched\" or \"ssd\"");
+  }
+  return Status::Ok();
+}
+
+// A misspelt key ("max_tlit") would otherwise leave its default in force without a word.
+const std::vector<std::string> kSpecKeys = {"format", "format_version", "width_px", "height_px",
+                                            "seed",   "pixel_pitch_m",  "layers"};
+const std::vector<std::string> kLayerKeys = {
+    "prototype", "density",   "scale",          "rotation_deg",    "x",         "y",        "top_bias",
+    "patch_px",  "overlap_px", "tolerance",     "variance_tolerance", "max_candidates", "match_histogram",
+    "selection", "max_tilt",  "mass_feedback"};
+
+Status RejectUnknownKeys(const nlohmann::json& j, const std::string& where, const std::vector<std::string>& known) {
+  for (const auto& item : j.items()) {
+    if (std::find(known.begin(), known.end(), item.key()) != known.end()) continue;
+    std::string list;
+    for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
+    return Status::Error(where + ": unknown field '" + item.key() + "' (known: " + list + ")");
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 bool SynthesisOptions::Check(std::string* error) const {
@@ -101,6 +140,7 @@ Status ReadSynthesisSpec(const std::string& path, SynthesisOptions* options) {
       j["format_version"].get<std::string>().rfind("1.", 0) != 0) {
     return Status::Error(path + ": field 'format_version' must be \"1.x\"");
   }
+  THINSLAB_RETURN_IF_ERROR(RejectUnknownKeys(j, path, kSpecKeys));
   THINSLAB_RETURN_IF_ERROR(ReadNumber(j, path, "width_px", &options->width_px));
   THINSLAB_RETURN_IF_ERROR(ReadNumber(j, path, "height_px", &options->height_px));
   for (const auto& [key, value] : {std::pair<const char*, int>{"width_px", options->width_px},
@@ -119,6 +159,7 @@ Status ReadSynthesisSpec(const std::string& path, SynthesisOptions* options) {
     const auto& l = j["layers"][k];
     const std::string where = path + ": layers[" + std::to_string(k) + "]";
     if (!l.is_object()) return Status::Error(where + " is not an object");
+    THINSLAB_RETURN_IF_ERROR(RejectUnknownKeys(l, where, kLayerKeys));
     SynthLayerSpec spec;
     if (!l.contains("prototype") || !l["prototype"].is_string())
       return Status::Error(where + ".prototype must be a string");
@@ -137,6 +178,10 @@ Status ReadSynthesisSpec(const std::string& path, SynthesisOptions* options) {
     THINSLAB_RETURN_IF_ERROR(ReadNumber(l, where, "tolerance", &spec.quilting.tolerance));
     THINSLAB_RETURN_IF_ERROR(ReadNumber(l, where, "variance_tolerance", &spec.quilting.variance_tolerance));
     THINSLAB_RETURN_IF_ERROR(ReadNumber(l, where, "max_candidates", &spec.quilting.max_candidates));
+    THINSLAB_RETURN_IF_ERROR(ReadBool(l, where, "match_histogram", &spec.quilting.match_histogram));
+    THINSLAB_RETURN_IF_ERROR(ReadSelection(l, where, &spec.quilting.selection));
+    THINSLAB_RETURN_IF_ERROR(ReadNumber(l, where, "max_tilt", &spec.quilting.max_tilt));
+    THINSLAB_RETURN_IF_ERROR(ReadNumber(l, where, "mass_feedback", &spec.quilting.mass_feedback));
     options->layers.push_back(spec);
   }
   return Status::Ok();

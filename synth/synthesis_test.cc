@@ -433,6 +433,50 @@ TEST(SynthesisTest, SpecFileAndErrors) {
   EXPECT_NE(s.message().find("layers[0].scale must be [min, max]"), std::string::npos) << s.message();
 }
 
+TEST(SynthesisTest, SpecFileSetsTheQuiltingSelection) {
+  TempDir dir;
+  const auto spec = [&](const std::string& name, const std::string& layer) {
+    const std::string path = dir / name;
+    EXPECT_TRUE(WriteFileAtomically(path, R"({"format": "thinslab-synth-spec", "format_version": "1.0",
+      "width_px": 96, "height_px": 80, "seed": 4, "layers": [)" + layer + "]}")
+                    .ok());
+    return path;
+  };
+  SynthesisOptions o;
+  ASSERT_TRUE(ReadSynthesisSpec(spec("ssd.json", R"({"prototype": "dust_a", "selection": "ssd", "max_tilt": 1.5,
+      "mass_feedback": 0.25, "match_histogram": false})"),
+                                &o)
+                  .ok());
+  ASSERT_EQ(o.layers.size(), 1u);
+  EXPECT_EQ(o.layers[0].quilting.selection, QuiltingSelection::kSsd);
+  EXPECT_DOUBLE_EQ(o.layers[0].quilting.max_tilt, 1.5);
+  EXPECT_DOUBLE_EQ(o.layers[0].quilting.mass_feedback, 0.25);
+  EXPECT_FALSE(o.layers[0].quilting.match_histogram);
+  // The options reach the quilting: the same seed with the default selection gives another layer.
+  SynthesisOptions defaults;
+  ASSERT_TRUE(ReadSynthesisSpec(spec("default.json", R"({"prototype": "dust_a", "match_histogram": false})"), &defaults)
+                  .ok());
+  EXPECT_EQ(defaults.layers[0].quilting.selection, QuiltingSelection::kMassMatched);
+  Image ssd_layer, default_layer;
+  SynthesisSummary summary;
+  ASSERT_TRUE(SynthesizeContamination(SmallLibrary(), o, &ssd_layer, &summary).ok());
+  ASSERT_TRUE(SynthesizeContamination(SmallLibrary(), defaults, &default_layer, &summary).ok());
+  EXPECT_NE(ssd_layer.data(), default_layer.data());
+
+  Status s = ReadSynthesisSpec(spec("bad_selection.json", R"({"prototype": "dust_a", "selection": "uniform"})"), &o);
+  EXPECT_NE(s.message().find(R"(layers[0].selection = "uniform": must be "mass_matched" or "ssd")"), std::string::npos)
+      << s.message();
+  s = ReadSynthesisSpec(spec("bad_bool.json", R"({"prototype": "dust_a", "match_histogram": 1})"), &o);
+  EXPECT_NE(s.message().find("layers[0].match_histogram must be true or false"), std::string::npos) << s.message();
+  s = ReadSynthesisSpec(spec("typo.json", R"({"prototype": "dust_a", "max_tlit": 2})"), &o);
+  EXPECT_NE(s.message().find("layers[0]: unknown field 'max_tlit'"), std::string::npos) << s.message();
+  // An out-of-range value is refused by the quilting, naming the layer.
+  ASSERT_TRUE(ReadSynthesisSpec(spec("tilt0.json", R"({"prototype": "dust_a", "max_tilt": 0})"), &o).ok());
+  s = SynthesizeContamination(SmallLibrary(), o, &ssd_layer, &summary);
+  EXPECT_NE(s.message().find("max_tilt"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("dust_a"), std::string::npos) << s.message();
+}
+
 TEST(SynthesisTest, BundledLibraryLoadsAndSynthesizes) {
   const char* source_dir = std::getenv("THINSLAB_SOURCE_DIR");
   ASSERT_NE(source_dir, nullptr) << "run through ctest (THINSLAB_SOURCE_DIR)";

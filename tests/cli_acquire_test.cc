@@ -52,9 +52,9 @@ int CountFrames(const std::string& session) {
   return static_cast<int>(s.frames.size());
 }
 
-// Starts `thinslab <args>` as a child process and SIGKILLs it once `min_frames` frames are on
-// disk; returns the frames on disk after the kill (-1 if it could not be killed mid-run).
-int RunAndKillAfter(const std::string& args, const std::string& session, int min_frames) {
+// Starts `thinslab <args>` as a child process and returns once `min_frames` frames of `session`
+// are on disk (or after 60 s); the child's pid, or -1.
+pid_t SpawnUntil(const std::string& args, const std::string& session, int min_frames) {
   std::vector<std::string> words = Split(args);
   words.insert(words.begin(), ThinslabBinary());
   std::vector<char*> argv;
@@ -66,10 +66,21 @@ int RunAndKillAfter(const std::string& args, const std::string& session, int min
   while (CountFrames(session) < min_frames && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
+  return pid;
+}
+
+// SIGKILLs the child; returns the frames on disk after the kill (-1 if it had finished first).
+int KillAndCount(pid_t pid, const std::string& session) {
+  if (pid < 0) return -1;
   kill(pid, SIGKILL);
   int wstatus = 0;
-  if (waitpid(pid, &wstatus, 0) != pid || !WIFSIGNALED(wstatus)) return -1;  // Finished first.
+  if (waitpid(pid, &wstatus, 0) != pid || !WIFSIGNALED(wstatus)) return -1;
   return CountFrames(session);
+}
+
+// Kills `thinslab <args>` once `min_frames` frames are on disk; the frames on disk after it.
+int RunAndKillAfter(const std::string& args, const std::string& session, int min_frames) {
+  return KillAndCount(SpawnUntil(args, session, min_frames), session);
 }
 
 // Lines of the output that start with "error: ". SDL's own stderr message about a missing
@@ -94,10 +105,10 @@ class CliAcquireTest : public ::testing::Test {
 
   // A small simulated shadow-map acquisition; --sim-realtime makes every capture take its
   // exposure time, as at a real rig, so there is time to kill it mid-scan.
-  static std::string ShadowArgs(const std::string& out) {
+  static std::string ShadowArgs(const std::string& out, int exposure_us = 40000) {
     return "acquire shadow-maps --quiet --tau " + *dir_ / "small.exr" +
            " --camera-width-px 160 --camera-height-px 120 --photons 4000 --frames 8 --dark-frames 2"
-           " --exposure-us 40000 --sim-realtime --seed 7 " + out;
+           " --exposure-us " + std::to_string(exposure_us) + " --sim-realtime --seed 7 " + out;
   }
   static constexpr int kPlannedFrames = 2 + 2 * 8;
 
@@ -201,6 +212,78 @@ TEST_F(CliAcquireTest, KilledMidScanAndResumedEqualsAnUninterruptedRun) {
   const RunResult other = RunThinslab(ShadowArgs(resumed) + " --resume --frames 9");
   EXPECT_NE(other.exit_code, 0);
   EXPECT_NE(other.output.find("acquisition.plan"), std::string::npos) << other.output;
+}
+
+TEST_F(CliAcquireTest, FoldJournalWritesAKilledCapturesFramesAndARunningCaptureKeepsOthersOut) {
+  const std::string session = *dir_ / "folded";
+  // 200 ms exposures: 18 frames take ~4 s, time to try the folder while the capture runs.
+  const pid_t pid = SpawnUntil(ShadowArgs(session, 200000), session, 4);
+  ASSERT_GT(pid, 0);
+  const std::string in_use = "in use by another thinslab acquire (process " + std::to_string(pid) + ")";
+  const RunResult fold_running = RunThinslab("acquire fold-journal " + session);
+  EXPECT_NE(fold_running.exit_code, 0);
+  EXPECT_NE(fold_running.output.find(in_use), std::string::npos) << fold_running.output;
+  const RunResult resume_running = RunThinslab(ShadowArgs(session, 200000) + " --resume");
+  EXPECT_NE(resume_running.exit_code, 0);
+  EXPECT_NE(resume_running.output.find(in_use), std::string::npos) << resume_running.output;
+  const int frames_at_kill = KillAndCount(pid, session);
+  ASSERT_GE(frames_at_kill, 4) << "the acquisition finished before it could be killed";
+  ASSERT_LT(frames_at_kill, kPlannedFrames);
+
+  Session manifest_only;
+  ASSERT_TRUE(ReadSession(session, &manifest_only).ok());
+  ASSERT_LT(manifest_only.frames.size(), static_cast<size_t>(frames_at_kill)) << "nothing left to fold";
+  std::string journal_before;
+  ASSERT_TRUE(ReadFileToString(session + "/journal.log", &journal_before).ok());
+  const RunResult fold = RunThinslab("acquire fold-journal " + session);
+  ASSERT_EQ(fold.exit_code, 0) << fold.output;
+  const int folded = frames_at_kill - static_cast<int>(manifest_only.frames.size());
+  EXPECT_NE(fold.output.find(std::to_string(folded) + " frames folded in from journal.log (" +
+                             std::to_string(frames_at_kill) + " in all; state 'running' kept)"),
+            std::string::npos)
+      << fold.output;
+  // session.json alone now has every frame the journal recorded, as the journal has them.
+  Session folded_session, with_journal;
+  ASSERT_TRUE(ReadSession(session, &folded_session).ok());
+  ASSERT_TRUE(ReadSessionWithJournal(session, &with_journal).ok());
+  ASSERT_EQ(folded_session.frames.size(), static_cast<size_t>(frames_at_kill));
+  for (int i = 0; i < frames_at_kill; ++i) {
+    ExpectSamePlannedFrame(with_journal.frames[i], folded_session.frames[i]);
+    EXPECT_EQ(folded_session.frames[i].file, with_journal.frames[i].file);
+    EXPECT_TRUE(FileExists(session + "/" + folded_session.frames[i].file)) << folded_session.frames[i].file;
+  }
+  EXPECT_EQ(folded_session.acquisition.state, "running");
+  EXPECT_EQ(folded_session.acquisition.camera_captures, with_journal.acquisition.camera_captures);
+  std::string journal_after;
+  ASSERT_TRUE(ReadFileToString(session + "/journal.log", &journal_after).ok());
+  // Kept, but for a last line the kill cut short (never a record).
+  EXPECT_LE(journal_after.size(), journal_before.size());
+  EXPECT_EQ(journal_before.substr(0, journal_after.size()), journal_after);
+  const RunResult again = RunThinslab("acquire fold-journal " + session);
+  EXPECT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_NE(again.output.find("nothing written"), std::string::npos) << again.output;
+
+  // The folded session resumes to the whole plan, nothing duplicated.
+  const RunResult resumed = RunThinslab(ShadowArgs(session, 200000) + " --resume");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+  Session complete;
+  ASSERT_TRUE(ReadSession(session, &complete).ok());
+  EXPECT_EQ(complete.acquisition.state, "complete");
+  ASSERT_EQ(complete.frames.size(), static_cast<size_t>(kPlannedFrames));
+  for (int i = 0; i < kPlannedFrames; ++i) EXPECT_EQ(complete.frames[i].index, i);
+
+  // Bad input: no session, and a session no acquisition wrote.
+  const RunResult none = RunThinslab("acquire fold-journal " + *dir_ / "no_such_session");
+  EXPECT_NE(none.exit_code, 0);
+  EXPECT_NE(none.output.find("no_such_session: not a capture session (no session.json)"), std::string::npos)
+      << none.output;
+  EXPECT_FALSE(fs::exists(*dir_ / "no_such_session"));
+  const RunResult sim = RunThinslab("sim shadow-maps " + *dir_ / "simulated" + " --tau " + *dir_ / "small.exr" +
+                                    " --camera-width-px 160 --camera-height-px 120 --photons 4000 --frames 2 --dark-frames 1");
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  const RunResult simulated = RunThinslab("acquire fold-journal " + *dir_ / "simulated");
+  EXPECT_NE(simulated.exit_code, 0);
+  EXPECT_NE(simulated.output.find("no \"acquisition\" record"), std::string::npos) << simulated.output;
 }
 
 // Brightest 3x3 mean of an image and where it is.
