@@ -11,6 +11,7 @@
 
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -26,9 +27,12 @@
 #include "acquire/session_writer.h"
 #include "core/file.h"
 #include "core/session_io.h"
+#include "drivers/display_gamma.h"
 #include "tests/testing/frame_record_matchers.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
+#include "tests/testing/xvfb_server.h"
+#include "tests/testing/xwd_root.h"
 
 extern char** environ;
 
@@ -519,6 +523,51 @@ TEST_F(CliAcquireTest, DisplayIndexOutOfRangeIsNamed) {
   // With or without an X server (no $DISPLAY), the error names the display index.
   ExpectDeviceError("acquire dot-scan --display 99 " + *dir_ / "disp", {"display 99"}, *dir_ / "disp");
   ExpectDeviceError("acquire dot-scan --display -4 " + *dir_ / "disp", {"--display"}, *dir_ / "disp");
+}
+
+// `--gamma-table` reaches the real window: under a private Xvfb, while `acquire bracket
+// --display 0` shows flat:0.25, the X server's own framebuffer holds the drive level the table
+// inverts 0.25 to (a display with light = drive^2.2: 0.25 -> 0.533), not the identity's 0.25.
+TEST_F(CliAcquireTest, DisplayWindowDrivesTheLevelTheGammaTableAsksFor) {
+  XvfbServer xvfb;
+  std::string error;
+  ASSERT_TRUE(xvfb.Start(160, 120, &error)) << error;
+  const char* old_display = std::getenv("DISPLAY");
+  const std::string saved_display = old_display ? old_display : "";
+  setenv("DISPLAY", xvfb.display().c_str(), 1);
+#ifdef __SANITIZE_ADDRESS__
+  setenv("SDL_RENDER_DRIVER", "software", 1);  // No Mesa GL under LeakSanitizer (pattern_window_test).
+  setenv("SDL_FRAMEBUFFER_ACCELERATION", "0", 1);
+#endif
+  GammaTable table;
+  for (int i = 0; i <= 32; ++i) table.drive_to_light.push_back({i / 32.0, std::pow(i / 32.0, 2.2)});
+  const std::string table_path = *dir_ / "window_gamma.txt";
+  ASSERT_TRUE(WriteGammaTable(table_path, table).ok());
+  for (const bool with_table : {true, false}) {
+    SCOPED_TRACE(with_table ? "with the table" : "identity");
+    const std::string out = *dir_ / (with_table ? "window_table" : "window_identity");
+    const std::string args = "acquire bracket --quiet --display 0 --pattern flat:0.25 --capture-dark false"
+                             " --camera-width-px 32 --camera-height-px 24 --exposures-us 100000,200000,400000"
+                             " --sim-realtime " + (with_table ? "--gamma-table " + table_path + " " : "") + out;
+    const pid_t pid = SpawnUntil(args, out, 1);  // The pattern is on screen before its first frame.
+    ASSERT_GT(pid, 0);
+    Image root;
+    const Status dump = DumpRootWindow(xvfb.display(), *dir_ / "root.xwd", &root);
+    int wstatus = 0;
+    ASSERT_EQ(waitpid(pid, &wstatus, 0), pid);
+    ASSERT_TRUE(dump.ok()) << dump.message();
+    EXPECT_TRUE(WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0) << "acquire bracket failed";
+    ASSERT_EQ(CountFrames(out), 3);
+    const double expected = with_table ? table.DriveForLight(0.25) : 0.25;
+    // 8-bit drive: within half a step of the exact level, plus rounding in the renderer.
+    EXPECT_NEAR(root.at(80, 60), 255 * expected, 1.0) << "expected drive " << expected;
+    EXPECT_NEAR(root.at(5, 5), root.at(80, 60), 0.5) << "flat pattern not uniform on screen";
+  }
+  if (saved_display.empty()) {
+    unsetenv("DISPLAY");
+  } else {
+    setenv("DISPLAY", saved_display.c_str(), 1);
+  }
 }
 
 TEST_F(CliAcquireTest, UnreachableOrAbsentCameraIsNamed) {
