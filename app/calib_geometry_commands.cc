@@ -295,6 +295,8 @@ int RunCalibDots(int argc, char** argv) {
                    "detection threshold as a fraction of the brightest dot's 3x3 mean");
   parser.AddInt("window-margin-px", &options.window_margin_px, "centroid window margin around each blob [px]");
   parser.AddString("kind", &kind, "frame kind of the all-dots frames");
+  parser.AddBool("refine-distance", &options.refine_distance,
+                 "set the monitor distance d from the grid's scale instead of the manifest's");
   parser.AddString("rig", &rig_path, "rig.json with intrinsics and pose (default SESSION/calib/rig.json)");
   std::string response_path;
   parser.AddString("response", &response_path,
@@ -375,6 +377,10 @@ int RunCalibDots(int argc, char** argv) {
     m.rms_residual_m = result.rms_residual_m;
     m.max_residual_m = result.max_residual_m;
     m.homography_rms_px = result.homography_rms_px;
+    m.grid_scale = result.grid_scale;
+    m.distance_error_m = result.distance_error_m;
+    m.distance_error_sigma_m = result.distance_error_sigma_m;
+    m.distance_correction_m = result.distance_correction_m;
     m.dots = result.dots;
     int saturated = 0;
     std::ostringstream csv;
@@ -400,11 +406,25 @@ int RunCalibDots(int argc, char** argv) {
            << " mm, max " << Fmt("%.4f", result.max_residual_m * 1e3) << " mm\n"
            << "in-plane correction of the manifest monitor pose: " << Fmt("%.3f", result.in_plane_correction_m * 1e3)
            << " mm, " << Fmt("%.4f", result.in_plane_correction_rad * 180 / kPi) << " deg\n";
+    // docs/models/geometric_calibration.md 3.7: the grid's scale measures d.
+    if (options.refine_distance) {
+      report << "monitor distance from the grid's scale: plane moved " << Fmt("%.3f", result.distance_correction_m * 1e3)
+             << " mm towards the camera (d " << (result.distance_correction_m >= 0 ? "was too large" : "was too small")
+             << "); remaining " << Fmt("%.4f", result.distance_error_m * 1e3) << " mm\n";
+    } else {
+      report << "monitor distance from the grid's scale (scale " << Fmt("%.6f", result.grid_scale)
+             << "): the manifest's plane is " << Fmt("%.3f", result.distance_error_m * 1e3) << " +- "
+             << Fmt("%.3f", result.distance_error_sigma_m * 1e3)
+             << " mm further from the camera than the grid says (not applied; --refine-distance applies it)\n";
+    }
+    const std::string distance_warning =
+        options.refine_distance ? "" : MonitorDistanceWarning(result.distance_error_m, result.distance_error_sigma_m);
     THINSLAB_RETURN_IF_ERROR(CreateDirectories(calib_dir));
     THINSLAB_RETURN_IF_ERROR(WriteRigCalibration(out_rig, out));
     THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(calib_dir, "dots.csv"), csv.str()));
     THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(calib_dir, "dots_report.txt"), report.str()));
     std::cout << report.str() << "wrote " << out_rig << "\n";
+    if (!distance_warning.empty()) std::cerr << "warning: " << JoinPath(session_dir, chosen->file) << ": " << distance_warning << "\n";
     return Status::Ok();
   };
   status = run();

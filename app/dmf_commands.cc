@@ -165,6 +165,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   DmfSliceSet slices;
   DmfProcessingReport processing;
   THINSLAB_RETURN_IF_ERROR(PrepareDotScanSlices(session_dir, run.processing, &slices, &processing));
+  if (!processing.dot_distance_warning.empty()) {
+    std::cerr << "warning: " << processing.dot_geometry_source << ": " << processing.dot_distance_warning << "\n";
+  }
   DmfMaps maps;
   THINSLAB_RETURN_IF_ERROR(FitDualMicrofacetMaps(slices, run.fit, &maps));
   for (const auto& [x, y] : pixels) {
@@ -307,6 +310,10 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["points_fitted_directly"] = maps.num_fitted;
   j["status_counts"] = counts;
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
+  j["monitor_distance"] = {{"error_m", processing.dot_distance_error_m},
+                           {"error_sigma_m", processing.dot_distance_error_sigma_m},
+                           {"correction_m", processing.dot_distance_correction_m},
+                           {"warning", processing.dot_distance_warning}};
   j["dot_geometry_source"] = processing.dot_geometry_source;
   j["calibration"] = CalibrationSummaryJson(processing.calibration);
   j["capture"] = CaptureSummaryJson(processing.capture);
@@ -394,6 +401,8 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddDouble("cluster-fraction", &run.cluster_fraction, "k-means representatives per point; 0 = fit every point");
   parser.AddInt("neighbors", &run.fit.clustering.num_neighbors, "representatives per interpolated point (Eq. 20)");
   parser.AddBool("hold-out", &run.processing.hold_out, "hold out every other dot from the fit");
+  parser.AddBool("refine-monitor-distance", &run.processing.dot_geometry.refine_distance,
+                 "set the monitor distance d from the all-dots grid's scale (not with calib dots' rig.json)");
   parser.AddDouble("dot-radius-px", &run.processing.dot_radius_px,
                    "radius of a displayed dot [monitor px] (rig.json's when it holds the dot calibration)");
   AddCalibrationOptions(&parser, &run.processing.calibration);

@@ -4,6 +4,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
@@ -153,6 +154,122 @@ std::vector<cv::Point2f> HullCorners(const std::vector<Eigen::Vector2d>& points)
     if (approx.size() < 4) break;
   }
   return {};
+}
+
+// Unit normal of the monitor plane pointing to the camera's side (sample frame).
+Eigen::Vector3d TowardsCamera(const CameraInfo& camera, const MonitorInfo& monitor) {
+  const Eigen::Vector3d n = monitor.sample_from_monitor.rotation * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d centre = camera.cam_from_sample.Inverse().translation;
+  return n.dot(centre - monitor.sample_from_monitor.translation) >= 0 ? n : Eigen::Vector3d(-n);
+}
+
+// Back-projects the matched blobs onto `monitor`'s plane (positions, L_q), fits the in-plane
+// rigid correction and the grid's scale. Fills the per-dot records and the geometry fields of
+// *out (the detection fields are the caller's).
+Status FitGridOnPlane(const CameraInfo& camera, const MonitorInfo& monitor,
+                      const std::vector<Eigen::Vector2d>& displayed_dots_px, const std::vector<Blob>& blobs,
+                      const std::vector<int>& match, const DotGeometryOptions& options, DotGeometryResult* result) {
+  DotGeometryResult& out = *result;
+  out.dots.clear();
+  out.max_residual_m = 0;
+  const Rigid3d monitor_from_sample = monitor.sample_from_monitor.Inverse();
+  const double pitch = monitor.pixel_pitch_m;
+  std::vector<Eigen::Vector2d> grid_m, measured_m;
+  for (size_t d = 0; d < displayed_dots_px.size(); ++d) {
+    DotRecord rec;
+    rec.dot_px = displayed_dots_px[d];
+    if (match[d] >= 0) {
+      const Blob& blob = blobs[match[d]];
+      Eigen::Vector3d x_in_sample;
+      if (BackProjectToMonitor(camera, monitor.sample_from_monitor, blob.centroid_px, &x_in_sample)) {
+        rec.detected = true;
+        rec.centroid_px = blob.centroid_px;
+        rec.position_in_sample_m = x_in_sample;
+        rec.saturated = blob.saturated;
+        // L_q = integrated signal / projected dot area in camera px. The area is the dot's
+        // area on the screen (pi r^2 pitch^2) times |det| of d(pixel)/d(screen metres), taken by
+        // central differences through the full camera model (distortion included).
+        const Eigen::Vector3d ex = monitor.sample_from_monitor.rotation * Eigen::Vector3d::UnitX();
+        const Eigen::Vector3d ey = monitor.sample_from_monitor.rotation * Eigen::Vector3d::UnitY();
+        const double step = 0.5 * pitch;
+        Eigen::Vector2d pxp, pxm, pyp, pym;
+        const bool ok = ProjectSamplePoint(camera, x_in_sample + step * ex, &pxp) &&
+                        ProjectSamplePoint(camera, x_in_sample - step * ex, &pxm) &&
+                        ProjectSamplePoint(camera, x_in_sample + step * ey, &pyp) &&
+                        ProjectSamplePoint(camera, x_in_sample - step * ey, &pym);
+        if (ok) {
+          Eigen::Matrix2d J;
+          J.col(0) = (pxp - pxm) / (2 * step);
+          J.col(1) = (pyp - pym) / (2 * step);
+          const double area_px = std::abs(J.determinant()) * kPi * Sqr(options.dot_radius_px * pitch);
+          rec.radiance_dn_per_us = area_px > 0 ? blob.flux_dn_per_us / area_px : 0;
+        }
+        const Eigen::Vector3d in_monitor = monitor_from_sample * x_in_sample;
+        grid_m.emplace_back(rec.dot_px * pitch);
+        measured_m.emplace_back(in_monitor.head<2>());
+      }
+    }
+    out.dots.push_back(rec);
+  }
+  if (grid_m.size() < 3) return Status::Error("dots: fewer than 3 dots back-project onto the monitor plane");
+
+  // In-plane rigid correction (2D Procrustes, no scale: the pitch is known) of the nominal
+  // monitor pose: measured ~ R * grid + t in monitor coordinates.
+  Eigen::Vector2d mean_g = Eigen::Vector2d::Zero(), mean_m = Eigen::Vector2d::Zero();
+  for (size_t k = 0; k < grid_m.size(); ++k) {
+    mean_g += grid_m[k];
+    mean_m += measured_m[k];
+  }
+  mean_g /= grid_m.size();
+  mean_m /= grid_m.size();
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (size_t k = 0; k < grid_m.size(); ++k) cov += (measured_m[k] - mean_m) * (grid_m[k] - mean_g).transpose();
+  const double angle = std::atan2(cov(1, 0) - cov(0, 1), cov(0, 0) + cov(1, 1));
+  const Eigen::Matrix2d R = Eigen::Rotation2Dd(angle).toRotationMatrix();
+  const Eigen::Vector2d t = mean_m - R * mean_g;
+  Rigid3d correction;  // monitor_nominal_from_monitor_refined.
+  correction.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
+  correction.translation = Eigen::Vector3d(t.x(), t.y(), 0);
+  out.sample_from_monitor.rotation = (monitor.sample_from_monitor.rotation * correction.rotation).normalized();
+  out.sample_from_monitor.translation = monitor.sample_from_monitor * correction.translation;
+  out.in_plane_correction_m = t.norm();
+  out.in_plane_correction_rad = angle;
+  double sum2 = 0;
+  size_t k = 0;
+  for (DotRecord& rec : out.dots) {
+    if (!rec.detected) continue;
+    rec.residual_m = (R * grid_m[k] + t - measured_m[k]).norm();
+    sum2 += Sqr(rec.residual_m);
+    out.max_residual_m = std::max(out.max_residual_m, rec.residual_m);
+    ++k;
+  }
+  out.rms_residual_m = std::sqrt(sum2 / grid_m.size());
+
+  // Not in Dai et al.: the grid's scale, s = sum (m - mean_m) . R (g - mean_g) / sum |g - mean_g|^2
+  // (the least-squares similarity with the rotation above). The pitch is known, so s != 1 says
+  // the plane is at the wrong distance: between parallel planes, back-projection through the
+  // camera centre is a homothety of ratio h_plane / h_true (h: the centre's distance to the
+  // plane), so the plane is delta = h (1 - 1/s) too far from the camera.
+  double sum_g2 = 0, sum_mg = 0;
+  for (size_t j = 0; j < grid_m.size(); ++j) {
+    sum_g2 += (grid_m[j] - mean_g).squaredNorm();
+    sum_mg += (measured_m[j] - mean_m).dot(R * (grid_m[j] - mean_g));
+  }
+  out.grid_scale = sum_g2 > 0 ? sum_mg / sum_g2 : 1;
+  double similarity_ssr = 0;
+  for (size_t j = 0; j < grid_m.size(); ++j) {
+    similarity_ssr += (out.grid_scale * R * (grid_m[j] - mean_g) + mean_m - measured_m[j]).squaredNorm();
+  }
+  const double h = TowardsCamera(camera, monitor).dot(camera.cam_from_sample.Inverse().translation -
+                                                      monitor.sample_from_monitor.translation);
+  out.camera_to_plane_m = h;
+  out.distance_error_m = h * (1 - 1 / out.grid_scale);
+  // Statistical only (residuals as independent): calibration errors of the camera add a
+  // systematic part (docs/models/geometric_calibration.md, 3.7).
+  const double dof = std::max<double>(1, 2.0 * grid_m.size() - 4);
+  const double sigma_scale = sum_g2 > 0 ? std::sqrt(similarity_ssr / dof / sum_g2) : 0;
+  out.distance_error_sigma_m = h * sigma_scale / Sqr(out.grid_scale);
+  return Status::Ok();
 }
 
 }  // namespace
@@ -368,81 +485,32 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
   out.background_dn_per_us = background * inv_t;
   out.noise_dn_per_us = noise * inv_t;
   out.homography_rms_px = best_rms * camera.fx_px;
-  const Rigid3d monitor_from_sample = monitor.sample_from_monitor.Inverse();
-  const double pitch = monitor.pixel_pitch_m;
-  // Back-projection (Dai Section 4.1: "projected to the 3D plane (x, y, d)").
-  std::vector<Eigen::Vector2d> grid_m, measured_m;
-  for (size_t d = 0; d < displayed_dots_px.size(); ++d) {
-    DotRecord rec;
-    rec.dot_px = displayed_dots_px[d];
-    if (match[d] >= 0) {
-      const Blob& blob = blobs[match[d]];
-      Eigen::Vector3d x_in_sample;
-      if (BackProjectToMonitor(camera, monitor.sample_from_monitor, blob.centroid_px, &x_in_sample)) {
-        rec.detected = true;
-        rec.centroid_px = blob.centroid_px;
-        rec.position_in_sample_m = x_in_sample;
-        rec.saturated = blob.saturated;
-        // L_q = integrated signal / projected dot area in camera px. The area is the dot's
-        // area on the screen (pi r^2 pitch^2) times |det| of d(pixel)/d(screen metres), taken by
-        // central differences through the full camera model (distortion included).
-        const Eigen::Vector3d ex = monitor.sample_from_monitor.rotation * Eigen::Vector3d::UnitX();
-        const Eigen::Vector3d ey = monitor.sample_from_monitor.rotation * Eigen::Vector3d::UnitY();
-        const double step = 0.5 * pitch;
-        Eigen::Vector2d pxp, pxm, pyp, pym;
-        const bool ok = ProjectSamplePoint(camera, x_in_sample + step * ex, &pxp) &&
-                        ProjectSamplePoint(camera, x_in_sample - step * ex, &pxm) &&
-                        ProjectSamplePoint(camera, x_in_sample + step * ey, &pyp) &&
-                        ProjectSamplePoint(camera, x_in_sample - step * ey, &pym);
-        if (ok) {
-          Eigen::Matrix2d J;
-          J.col(0) = (pxp - pxm) / (2 * step);
-          J.col(1) = (pyp - pym) / (2 * step);
-          const double area_px = std::abs(J.determinant()) * kPi * Sqr(options.dot_radius_px * pitch);
-          rec.radiance_dn_per_us = area_px > 0 ? blob.flux_dn_per_us / area_px : 0;
-        }
-        const Eigen::Vector3d in_monitor = monitor_from_sample * x_in_sample;
-        grid_m.emplace_back(rec.dot_px * pitch);
-        measured_m.emplace_back(in_monitor.head<2>());
-      }
-    }
-    out.dots.push_back(rec);
+  // Dai Section 4.1: "projected to the 3D plane (x, y, d)", with d from the manifest; with
+  // options.refine_distance the plane is moved along its normal until the back-projected grid
+  // has the displayed pitch (FitGridOnPlane; docs/models/geometric_calibration.md, 3.7).
+  MonitorInfo plane = monitor;
+  THINSLAB_RETURN_IF_ERROR(FitGridOnPlane(camera, plane, displayed_dots_px, blobs, match, options, &out));
+  for (int pass = 0; options.refine_distance && pass < 8 && std::abs(out.distance_error_m) > 1e-7; ++pass) {
+    plane.sample_from_monitor.translation += out.distance_error_m * TowardsCamera(camera, plane);
+    THINSLAB_RETURN_IF_ERROR(FitGridOnPlane(camera, plane, displayed_dots_px, blobs, match, options, &out));
   }
-  if (grid_m.size() < 3) return Status::Error("dots: fewer than 3 dots back-project onto the monitor plane");
-
-  // In-plane rigid correction (2D Procrustes, no scale: the pitch is known) of the nominal
-  // monitor pose: measured ~ R * grid + t in monitor coordinates.
-  Eigen::Vector2d mean_g = Eigen::Vector2d::Zero(), mean_m = Eigen::Vector2d::Zero();
-  for (size_t k = 0; k < grid_m.size(); ++k) {
-    mean_g += grid_m[k];
-    mean_m += measured_m[k];
-  }
-  mean_g /= grid_m.size();
-  mean_m /= grid_m.size();
-  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-  for (size_t k = 0; k < grid_m.size(); ++k) cov += (measured_m[k] - mean_m) * (grid_m[k] - mean_g).transpose();
-  const double angle = std::atan2(cov(1, 0) - cov(0, 1), cov(0, 0) + cov(1, 1));
-  const Eigen::Matrix2d R = Eigen::Rotation2Dd(angle).toRotationMatrix();
-  const Eigen::Vector2d t = mean_m - R * mean_g;
-  Rigid3d correction;  // monitor_nominal_from_monitor_refined.
-  correction.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
-  correction.translation = Eigen::Vector3d(t.x(), t.y(), 0);
-  out.sample_from_monitor.rotation = (monitor.sample_from_monitor.rotation * correction.rotation).normalized();
-  out.sample_from_monitor.translation = monitor.sample_from_monitor * correction.translation;
-  out.in_plane_correction_m = t.norm();
-  out.in_plane_correction_rad = angle;
-  double sum2 = 0;
-  size_t k = 0;
-  for (DotRecord& rec : out.dots) {
-    if (!rec.detected) continue;
-    rec.residual_m = (R * grid_m[k] + t - measured_m[k]).norm();
-    sum2 += Sqr(rec.residual_m);
-    out.max_residual_m = std::max(out.max_residual_m, rec.residual_m);
-    ++k;
-  }
-  out.rms_residual_m = std::sqrt(sum2 / grid_m.size());
+  out.distance_correction_m = TowardsCamera(camera, monitor).dot(plane.sample_from_monitor.translation -
+                                                                 monitor.sample_from_monitor.translation);
   *result = std::move(out);
   return Status::Ok();
 }
 
+std::string MonitorDistanceWarning(double distance_error_m, double distance_error_sigma_m) {
+  if (std::abs(distance_error_m) <= std::max(kMonitorDistanceWarningM, 5 * distance_error_sigma_m)) return "";
+  char text[400];
+  std::snprintf(text, sizeof(text),
+                "the displayed dot grid's scale says the monitor plane is %.2f mm (+- %.3f mm) %s the camera than "
+                "rig.monitor puts it (distance d %s); the dot positions are off by about as much. Measure d again, "
+                "or let the grid's scale set it: calib dots --refine-distance, fit dmf --refine-monitor-distance",
+                std::abs(distance_error_m) * 1e3, distance_error_sigma_m * 1e3,
+                distance_error_m > 0 ? "nearer to" : "further from", distance_error_m > 0 ? "too large" : "too small");
+  return text;
+}
+
 }  // namespace thinslab
+

@@ -34,6 +34,11 @@ struct DotGeometryOptions {
   int min_blob_area_px = 2;          // Smaller blobs are noise.
   int window_margin_px = 3;          // Centroid/flux window: blob bounding box grown by this.
   double match_gate_fraction = 0.35; // Match radius as a fraction of the local dot spacing in the image.
+  // Move the monitor plane along its normal until the back-projected grid has the displayed
+  // pitch (DotGeometryResult::grid_scale 1): measures d from the one all-dots view, to the
+  // precision the camera calibration allows (docs/models/geometric_calibration.md, 3.7). Off by
+  // default: with d measured to better than that, the manifest's d is the better value.
+  bool refine_distance = false;
   Status Check() const;
 };
 
@@ -57,6 +62,15 @@ struct DotGeometryResult {
   double in_plane_correction_m = 0;     // Size of the in-plane shift applied to the nominal pose.
   double in_plane_correction_rad = 0;
   double homography_rms_px = 0;         // Fit of the matched centroids by the grid homography.
+  // The grid's scale on the plane: back-projected spacing / displayed spacing (least squares).
+  double grid_scale = 1;
+  // How much further from the camera the plane used is than the one the grid's scale says,
+  // h (1 - 1/grid_scale) along the plane normal [m] (> 0: the monitor distance d is too large),
+  // and its statistical sigma (residual scatter only; the camera calibration adds a systematic
+  // part). Without refine_distance: of the manifest's plane; with it: what remains (~0).
+  double distance_error_m = 0, distance_error_sigma_m = 0;
+  double camera_to_plane_m = 0;     // h: the camera centre's distance to the plane used.
+  double distance_correction_m = 0; // refine_distance: how far the plane was moved (> 0: towards the camera).
   int num_blobs = 0, num_matched = 0, num_unmatched_blobs = 0;
   double background_dn_per_us = 0, noise_dn_per_us = 0;
 };
@@ -68,6 +82,14 @@ struct DotGeometryResult {
 Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double saturation_dn, const CameraInfo& camera,
                             const MonitorInfo& monitor, const std::vector<Eigen::Vector2d>& displayed_dots_px,
                             const DotGeometryOptions& options, DotGeometryResult* result);
+
+// Non-empty when the grid's scale says the monitor plane used is off by more than a single view
+// measures: |distance_error_m| above kMonitorDistanceWarningM and 5 statistical sigmas. Names
+// the amount and the way on (--refine-distance, `fit dmf --refine-monitor-distance`).
+// kMonitorDistanceWarningM is 5x the systematic error the grid scale showed through a chessboard-
+// calibrated camera (0.046 mm; calib/dot_geometry_test, WholeCalibrationChainFromChessboardViews).
+inline constexpr double kMonitorDistanceWarningM = 0.25e-3;
+std::string MonitorDistanceWarning(double distance_error_m, double distance_error_sigma_m);
 
 // Point where the camera ray through thinslab pixel `pixel` meets the monitor plane, sample
 // frame. False if the ray is parallel to the plane or the plane is behind the camera.

@@ -257,6 +257,42 @@ TEST(DotGeometryTest, WholeCalibrationChainFromChessboardViews) {
   std::printf("monitor distance 0.5 mm off: dots rms %.4f mm (0.5 mm x tan(theta) = %.4f mm)\n", rms_off_m * 1e3,
               0.5 * tan_theta);
   EXPECT_NEAR(rms_off_m, 0.5e-3 * tan_theta, 0.3 * 0.5e-3 * tan_theta);
+
+  // 5. The grid's scale measures d from this one view (docs/models/geometric_calibration.md 3.7),
+  // through the estimated camera: the distance error it reports is the manifest's within 0.1 mm,
+  // and refine_distance puts every dot within 0.1 mm in 3D (issue #6) for a d off by up to 5 mm.
+  for (double off_mm : {0.0, 0.5, 2.0, -2.0, 5.0}) {
+    MonitorInfo wrong = rig->monitor_info();
+    // The screen plane z = -d of the sample frame: a manifest d off_mm too large.
+    wrong.sample_from_monitor.translation.z() -= off_mm * 1e-3;
+    for (bool refine : {false, true}) {
+      DotGeometryOptions o = dot_options;
+      o.refine_distance = refine;
+      DotGeometryResult result;
+      ASSERT_TRUE(CalibrateDotGeometry(frame, 1000, full_scale, estimated, wrong, GridDots(), o, &result).ok());
+      double worst = 0;
+      for (const DotRecord& dot : result.dots) {
+        worst = std::max(worst, (dot.position_in_sample_m - rig->DotInSample(dot.dot_px)).norm());
+      }
+      std::printf("d off %+.1f mm, %s: grid scale %.6f, distance error %.4f +- %.4f mm, correction %.4f mm, "
+                  "worst 3D dot error %.4f mm, rms residual %.4f mm\n",
+                  off_mm, refine ? "refined" : "as given", result.grid_scale, result.distance_error_m * 1e3,
+                  result.distance_error_sigma_m * 1e3, result.distance_correction_m * 1e3, worst * 1e3,
+                  result.rms_residual_m * 1e3);
+      if (refine) {
+        EXPECT_NEAR(result.distance_correction_m, off_mm * 1e-3, 0.1e-3);
+        EXPECT_LT(std::abs(result.distance_error_m), 1e-6);
+        EXPECT_LT(worst, 0.1e-3);
+        EXPECT_EQ(MonitorDistanceWarning(result.distance_error_m, result.distance_error_sigma_m), "");
+      } else {
+        EXPECT_NEAR(result.distance_error_m, off_mm * 1e-3, 0.1e-3);
+        EXPECT_EQ(result.distance_correction_m, 0);
+        // Warned from kMonitorDistanceWarningM (0.25 mm) on.
+        EXPECT_EQ(MonitorDistanceWarning(result.distance_error_m, result.distance_error_sigma_m).empty(),
+                  std::abs(off_mm) < 0.25);
+      }
+    }
+  }
 }
 
 TEST(DotGeometryTest, BadInputsAreErrors) {

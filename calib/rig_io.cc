@@ -170,6 +170,12 @@ Status ReadRigCalibration(const std::string& path, RigCalibration* rig) {
     THINSLAB_RETURN_IF_ERROR(r.Number(j, p, "rms_residual_m", &c.rms_residual_m));
     THINSLAB_RETURN_IF_ERROR(r.Number(j, p, "max_residual_m", &c.max_residual_m));
     THINSLAB_RETURN_IF_ERROR(r.Number(j, p, "homography_rms_px", &c.homography_rms_px));
+    for (const auto& [key, value] : {std::pair<const char*, double*>{"grid_scale", &c.grid_scale},
+                                     {"distance_error_m", &c.distance_error_m},
+                                     {"distance_error_sigma_m", &c.distance_error_sigma_m},
+                                     {"distance_correction_m", &c.distance_correction_m}}) {
+      if (j.contains(key)) THINSLAB_RETURN_IF_ERROR(r.Number(j, p, key, value, key == std::string("grid_scale")));
+    }
     if (!j.contains("dots") || !j["dots"].is_array()) return r.Err(p + ".dots", "expected an array");
     for (size_t k = 0; k < j["dots"].size(); ++k) {
       const Json& d = j["dots"][k];
@@ -248,6 +254,10 @@ Status WriteRigCalibration(const std::string& path, const RigCalibration& rig) {
     j["rms_residual_m"] = c.rms_residual_m;
     j["max_residual_m"] = c.max_residual_m;
     j["homography_rms_px"] = c.homography_rms_px;
+    j["grid_scale"] = c.grid_scale;
+    j["distance_error_m"] = c.distance_error_m;
+    j["distance_error_sigma_m"] = c.distance_error_sigma_m;
+    j["distance_correction_m"] = c.distance_correction_m;
     OrderedJson dots = OrderedJson::array();
     for (const DotRecord& d : c.dots) {
       OrderedJson e;

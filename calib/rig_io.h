@@ -50,6 +50,10 @@ struct RigMonitorCalibration {
   int width_px = 0, height_px = 0;
   double dot_radius_px = 0;
   double rms_residual_m = 0, max_residual_m = 0, homography_rms_px = 0;
+  // The grid-scale measurement of the monitor distance (DotGeometryResult; optional in the file,
+  // absent before 2026-12): remaining distance error, its statistical sigma, and how far
+  // `calib dots --refine-distance` moved the plane towards the camera (0: not refined).
+  double grid_scale = 1, distance_error_m = 0, distance_error_sigma_m = 0, distance_correction_m = 0;
   std::vector<DotRecord> dots;
 };
 

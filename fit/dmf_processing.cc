@@ -159,10 +159,18 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   DotGeometryResult geometry;
   const RigMonitorCalibration& calibrated = report->calibration.monitor;
   if (calibrated.present) {
+    if (options.dot_geometry.refine_distance) {
+      return Status::Error(report->calibration.rig_file +
+                           ": monitor: the dot positions come from `thinslab calib dots`; refine the monitor distance "
+                           "there (calib dots --refine-distance), not in the fit");
+    }
     THINSLAB_RETURN_IF_ERROR(
         CheckCalibratedDots(calibrated, displayed).WithContext(report->calibration.rig_file + ": monitor"));
     geometry.dots = calibrated.dots;
     geometry.rms_residual_m = calibrated.rms_residual_m;
+    geometry.distance_error_m = calibrated.distance_error_m;
+    geometry.distance_error_sigma_m = calibrated.distance_error_sigma_m;
+    geometry.distance_correction_m = calibrated.distance_correction_m;
     report->dot_geometry_source = report->calibration.rig_file;
   } else {
     THINSLAB_RETURN_IF_ERROR(
@@ -275,6 +283,10 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   report->grid_nx = nx;
   report->grid_ny = ny;
   report->dot_rms_residual_m = geometry.rms_residual_m;
+  report->dot_distance_error_m = geometry.distance_error_m;
+  report->dot_distance_error_sigma_m = geometry.distance_error_sigma_m;
+  report->dot_distance_correction_m = geometry.distance_correction_m;
+  report->dot_distance_warning = MonitorDistanceWarning(geometry.distance_error_m, geometry.distance_error_sigma_m);
   report->median_dot_radiance = median_radiance;
   report->total_s = Seconds(start);
   return Status::Ok();

@@ -49,6 +49,11 @@ struct DmfProcessingOptions {
 struct DmfProcessingReport {
   int num_dots = 0, grid_nx = 0, grid_ny = 0, num_frames = 0, num_exposures = 0;
   double dot_rms_residual_m = 0;
+  // The grid-scale check of the monitor distance (DotGeometryResult): the distance error that
+  // remains, its statistical sigma, the correction applied (dot_geometry.refine_distance or
+  // `calib dots --refine-distance`), and MonitorDistanceWarning's text ("" = none).
+  double dot_distance_error_m = 0, dot_distance_error_sigma_m = 0, dot_distance_correction_m = 0;
+  std::string dot_distance_warning;
   double median_dot_radiance = 0;  // L_q [DN/us].
   int saturated_points = 0, outside_points = 0;
   double geometry_s = 0, merge_s = 0, total_s = 0;

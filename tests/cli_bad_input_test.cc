@@ -15,6 +15,7 @@
 #include <string>
 
 #include "core/exr_io.h"
+#include "core/file.h"
 #include "core/image.h"
 #include "core/session_io.h"
 #include "tests/testing/run_thinslab.h"
@@ -278,6 +279,22 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   EXPECT_GE(maps.ChannelIndex("measured_ndf_fraction"), 0);
   EXPECT_GE(maps.ChannelIndex("transmittance"), 0);
   for (float v : maps.data()) ASSERT_TRUE(std::isfinite(v));
+  // The grid-scale check of the monitor distance: the simulated d is right, so no warning; with
+  // --refine-monitor-distance the correction is recorded (small: d was right).
+  std::string summary_text;
+  ASSERT_TRUE(ReadFileToString(scan + "/fit/dmf/summary.json", &summary_text).ok());
+  nlohmann::json summary = nlohmann::json::parse(summary_text);
+  EXPECT_EQ(summary["monitor_distance"]["warning"], "");
+  EXPECT_EQ(summary["monitor_distance"]["correction_m"], 0);
+  EXPECT_LT(std::abs(summary["monitor_distance"]["error_m"].get<double>()), 0.25e-3);
+  const RunResult refined =
+      RunThinslab("fit dmf " + scan + " --pitch-mm 8 --refine-monitor-distance true --out " + (dir / "refined"));
+  ASSERT_EQ(refined.exit_code, 0) << refined.output;
+  ASSERT_TRUE(ReadFileToString(dir / "refined/summary.json", &summary_text).ok());
+  summary = nlohmann::json::parse(summary_text);
+  EXPECT_LT(std::abs(summary["monitor_distance"]["correction_m"].get<double>()), 0.25e-3);
+  EXPECT_NE(summary["monitor_distance"]["correction_m"], 0);
+  EXPECT_LT(std::abs(summary["monitor_distance"]["error_m"].get<double>()), 1e-6);
 
   // The model ladder needs held-out dots; with them it writes its rung map.
   const RunResult no_hold_out = RunThinslab("fit dmf " + scan + " --pitch-mm 8 --ladder true --out " + (dir / "l0"));

@@ -160,17 +160,22 @@ TEST(CalibratedFit, ResponseFromBracketLinearisesShadowMaps) {
   EXPECT_EQ(summary["calibration"]["response_method"].get<std::string>(), "debevec");
 }
 
+// A 6 x 6 dot scan of the default sample, few photons: fast, for the geometry of the chain.
+SyntheticDotScanOptions SmallDotScanRig() {
+  SyntheticDotScanOptions sim;
+  sim.session.grid_nx = sim.session.grid_ny = 6;
+  sim.sample.photons_per_region = 20000;
+  return sim;
+}
+
 // `thinslab calib dots` writes the dot positions and radiances into calib/rig.json; the
 // dot-scan processing then takes them from there instead of calibrating them again (a shift
 // written into the file shows up in the light positions it uses), and refuses a file made for
 // another dot grid.
 TEST(CalibratedFit, DotScanTakesDotGeometryFromRigJson) {
   TempDir dir;
-  SyntheticDotScanOptions sim;
-  sim.session.grid_nx = sim.session.grid_ny = 6;
-  sim.sample.photons_per_region = 20000;
   const std::string session = dir / "dots";
-  ASSERT_TRUE(SynthesizeDotScanSession(sim, session).ok());
+  ASSERT_TRUE(SynthesizeDotScanSession(SmallDotScanRig(), session).ok());
   DmfProcessingOptions processing;
   processing.pitch_m = 0.01;
   DmfSliceSet measured;
@@ -214,6 +219,72 @@ TEST(CalibratedFit, DotScanTakesDotGeometryFromRigJson) {
   ASSERT_FALSE(refused.ok());
   EXPECT_NE(refused.message().find(rig_path), std::string::npos) << refused.message();
   EXPECT_NE(refused.message().find("35 calibrated dots, the scan shows 36"), std::string::npos) << refused.message();
+}
+
+// The monitor distance d is what a lab measures by hand. With d 2 mm too large in the manifest,
+// the all-dots grid comes out 0.27 % too large on the plane: `calib dots` and the fit's own dot
+// calibration say so (a warning naming the amount), and with --refine-distance /
+// refine_distance they set d from the grid's scale, so the dots land within 0.1 mm (issue #6)
+// of where the true d puts them.
+TEST(CalibratedFit, MonitorDistanceFromTheGridScale) {
+  TempDir dir;
+  const std::string session = dir / "dots";
+  ASSERT_TRUE(SynthesizeDotScanSession(SmallDotScanRig(), session).ok());
+  DmfProcessingOptions processing;
+  processing.pitch_m = 0.01;
+  DmfSliceSet reference;
+  DmfProcessingReport report;
+  ASSERT_TRUE(PrepareDotScanSlices(session, processing, &reference, &report).ok());
+  EXPECT_LT(std::abs(report.dot_distance_error_m), 0.05e-3) << "the true d, measured from the grid";
+  EXPECT_EQ(report.dot_distance_warning, "");
+
+  nlohmann::json manifest = ReadJson(session + "/session.json");
+  auto& t = manifest["rig"]["monitor"]["sample_from_monitor"]["translation_m"];
+  t[2] = t[2].get<double>() - 2e-3;  // The screen is the plane z = -d: d 2 mm too large.
+  ASSERT_TRUE(WriteFileAtomically(session + "/session.json", manifest.dump(2)).ok());
+  auto worst_deviation = [&](const std::vector<Eigen::Vector3d>& positions) {
+    double worst = 0;
+    for (size_t k = 0; k < positions.size(); ++k) worst = std::max(worst, (positions[k] - reference.dot_positions[k]).norm());
+    return worst;
+  };
+
+  DmfSliceSet wrong, refined;
+  ASSERT_TRUE(PrepareDotScanSlices(session, processing, &wrong, &report).ok());
+  EXPECT_NEAR(report.dot_distance_error_m, 2e-3, 0.1e-3);
+  EXPECT_NE(report.dot_distance_warning.find("nearer to the camera than rig.monitor puts it (distance d too large)"),
+            std::string::npos)
+      << report.dot_distance_warning;
+  const double worst_wrong = worst_deviation(wrong.dot_positions);
+  EXPECT_GT(worst_wrong, 1.5e-3);
+  processing.dot_geometry.refine_distance = true;
+  ASSERT_TRUE(PrepareDotScanSlices(session, processing, &refined, &report).ok());
+  EXPECT_NEAR(report.dot_distance_correction_m, 2e-3, 0.1e-3);
+  EXPECT_EQ(report.dot_distance_warning, "");
+  const double worst_refined = worst_deviation(refined.dot_positions);
+  std::printf("manifest d 2 mm too large: dots up to %.3f mm off; set from the grid's scale: %.4f mm\n",
+              worst_wrong * 1e3, worst_refined * 1e3);
+  EXPECT_LT(worst_refined, 0.1e-3);
+
+  // The same through `thinslab calib dots`, whose rig.json the fit then reads.
+  const RunResult warned = RunThinslab("calib dots " + session);
+  ASSERT_EQ(warned.exit_code, 0) << warned.output;
+  EXPECT_NE(warned.output.find("warning: "), std::string::npos) << warned.output;
+  EXPECT_NE(warned.output.find("--refine-distance"), std::string::npos) << warned.output;
+  RigCalibration rig;
+  ASSERT_TRUE(ReadRigCalibration(session + "/calib/rig.json", &rig).ok());
+  EXPECT_NEAR(rig.monitor.distance_error_m, 2e-3, 0.1e-3);
+  EXPECT_EQ(rig.monitor.distance_correction_m, 0);
+  const RunResult applied = RunThinslab("calib dots " + session + " --refine-distance");
+  ASSERT_EQ(applied.exit_code, 0) << applied.output;
+  EXPECT_EQ(applied.output.find("warning: "), std::string::npos) << applied.output;
+  ASSERT_TRUE(ReadRigCalibration(session + "/calib/rig.json", &rig).ok());
+  EXPECT_NEAR(rig.monitor.distance_correction_m, 2e-3, 0.1e-3);
+  std::vector<Eigen::Vector3d> from_rig;
+  for (const DotRecord& d : rig.monitor.dots) from_rig.push_back(d.position_in_sample_m);
+  EXPECT_LT(worst_deviation(from_rig), 0.1e-3);
+  // With rig.json's dots, the fit cannot refine d itself: it says where to do it.
+  const Status refused = PrepareDotScanSlices(session, processing, &refined, &report);
+  EXPECT_NE(refused.message().find("calib dots --refine-distance"), std::string::npos) << refused.message();
 }
 
 // Gu Sec. 5.1 divides the shadow by the projector's flat illumination. `thinslab calib flat` on a
