@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cstdio>
 #include <iostream>
 #include <map>
 #include <set>
@@ -273,8 +274,10 @@ int RunCalibHdr(int argc, char** argv) {
     HdrImage hdr;
     SessionMergeInfo info;
     status = MergeSessionBracket(session_dir, session, *camera, group.frames, darks,
-                                 have_response ? &response : nullptr, options, read_noise_dn, &hdr, &info);
+                                 have_response ? &response : nullptr, options, read_noise_dn, &hdr, &info,
+                                 /*check_exposures=*/true);
     if (!status.ok()) return Fail(status.WithContext(group.name));
+    const ExposureCheck& check = info.exposure_check;
     Image image = StackChannels({&hdr.radiance, &hdr.variance, &hdr.all_saturated}, {"radiance", "variance", "saturated"});
     AddProvenance(&image, session_dir, options_ini);
     image.attributes()["camera"] = camera->id;
@@ -292,9 +295,24 @@ int RunCalibHdr(int argc, char** argv) {
                                  {"dark_exposure_mismatches", info.dark_exposure_mismatches},
                                  {"read_noise_dn", info.read_noise_dn},
                                  {"pixels_all_saturated", hdr.pixels_all_saturated},
-                                 {"pixels_fallback", hdr.pixels_fallback}});
+                                 {"pixels_fallback", hdr.pixels_fallback},
+                                 {"exposure_check",
+                                  {{"reported_us", check.reported_us},
+                                   {"measured_over_reported", check.measured_over_reported},
+                                   {"pixels", check.pixels},
+                                   {"max_deviation", check.measured ? check.max_deviation : -1},
+                                   {"warning", check.Warning()}}}});
     std::cout << group.name << ": " << info.num_frames << " frames, " << info.num_exposures << " exposures, "
-              << info.num_darks << " darks, " << hdr.pixels_all_saturated << " pixels saturated everywhere\n";
+              << info.num_darks << " darks, " << hdr.pixels_all_saturated << " pixels saturated everywhere"
+              << "; exposures checked against the frames: ";
+    if (check.measured) {
+      char deviation[32];
+      std::snprintf(deviation, sizeof(deviation), "%.2f", 100 * check.max_deviation);
+      std::cout << "largest deviation " << deviation << " %\n";
+    } else {
+      std::cout << "not measured (too few well-exposed pixels)\n";
+    }
+    if (!check.Warning().empty()) std::cerr << "warning: " << group.name << ": " << check.Warning() << "\n";
   }
   status = WriteFileAtomically(JoinPath(staged.path(), "summary.json"), summary.dump(2) + "\n");
   if (status.ok()) status = WriteFileAtomically(JoinPath(staged.path(), "options.ini"), options_ini);

@@ -392,7 +392,7 @@ Status MergeExposureBracket(const std::vector<HdrFrame>& frames, const HdrMergeO
 Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                            const std::vector<const FrameRecord*>& frames, const std::vector<const FrameRecord*>& darks,
                            const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
-                           HdrImage* hdr, SessionMergeInfo* info) {
+                           HdrImage* hdr, SessionMergeInfo* info, bool check_exposures) {
   *info = SessionMergeInfo();
   if (frames.empty()) return Status::Error(session_dir + ": no frames to merge");
   std::vector<Image> images(frames.size());
@@ -458,6 +458,9 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
   options.read_noise_dn = info->read_noise_dn;
   options.response = response;
   THINSLAB_RETURN_IF_ERROR(MergeExposureBracket(bracket, options, hdr).WithContext(session_dir));
+  if (check_exposures) {
+    THINSLAB_RETURN_IF_ERROR(CheckBracketExposures(bracket, options, &info->exposure_check).WithContext(session_dir));
+  }
   info->num_frames = static_cast<int>(frames.size());
   info->num_exposures = static_cast<int>(exposures.size());
   info->num_darks = static_cast<int>(darks.size());

@@ -123,7 +123,7 @@ struct NonlinearBracket {
   double saturation_dn = 0;
 
   explicit NonlinearBracket(int bit_depth, SimResponseCurve curve, double black_level_dn, double ambient = 0,
-                            int darks = 0, double exposure_step_us = 1) {
+                            int darks = 0, double exposure_step_us = 1, double exposure_offset_us = 0) {
     sim.width_px = 200;
     sim.height_px = 100;
     sim.min_e_per_us = 0.03;
@@ -133,6 +133,7 @@ struct NonlinearBracket {
     sim.sensor.black_level_dn = black_level_dn;
     sim.sensor.response = curve;
     sim.sensor.exposure_step_us = exposure_step_us;
+    sim.sensor.exposure_offset_us = exposure_offset_us;
     sim.ambient_e_per_us = ambient;
     sim.dark_frames_per_exposure = darks;
     sim.seed = 21;
@@ -256,6 +257,62 @@ TEST(HdrMerge, CoarseExposureStepsMergeLinearlyWithTheAppliedExposures) {
   EXPECT_TRUE(requested.chi2 > 1.25 || std::abs(requested.median_ratio_to_truth - 1.0) > 0.02)
       << "labelled with the requested exposures: chi2 " << requested.chi2 << ", median R / truth "
       << requested.median_ratio_to_truth;
+}
+
+// The exposure check (calib/exposure_check.h) on a linear 12-bit camera.
+ExposureCheck CheckExposures(const NonlinearBracket& b, const std::vector<double>& labels_us) {
+  std::vector<HdrFrame> frames = b.Frames();
+  for (size_t k = 0; k < frames.size(); ++k) frames[k].exposure_time_us = labels_us[k];
+  HdrMergeOptions options;
+  options.saturation_dn = b.saturation_dn;
+  options.black_level_dn = b.sim.sensor.black_level_dn;
+  options.read_noise_dn = b.sim.sensor.read_noise_e / b.sim.sensor.gain_e_per_dn();
+  ExposureCheck check;
+  EXPECT_TRUE(CheckBracketExposures(frames, options, &check).ok());
+  return check;
+}
+
+// A camera that applies what it reports passes, also with coarse (reported) exposure steps.
+TEST(ExposureCheck, ACameraThatAppliesWhatItReportsPasses) {
+  for (double step_us : {1.0, 37.0}) {
+    const NonlinearBracket b(12, SimResponseCurve::kLinear, 64, 0, 0, step_us);
+    const ExposureCheck check = CheckExposures(b, b.raw.frame_exposures_us);
+    ASSERT_TRUE(check.measured);
+    ASSERT_EQ(check.reported_us.size(), 5u);
+    for (size_t k = 0; k < 5; ++k) {
+      EXPECT_GE(check.pixels[k], k + 1 < 5 ? kExposureCheckMinPixels : 0) << k;
+      EXPECT_NEAR(check.measured_over_reported[k], 1.0, 0.003) << check.reported_us[k] << " us, step " << step_us;
+    }
+    EXPECT_EQ(check.Warning(), "");
+  }
+}
+
+// A camera that integrates 15 us longer than it reports (e.g. a reset time), and one that
+// rounds to 37 us lines but reports the requested exposure: the check measures each exposure's
+// factor relative to the longest (within 0.5 % of the true one) and names them.
+TEST(ExposureCheck, AnUnreportedOffsetOrRoundingIsMeasuredAndNamed) {
+  const NonlinearBracket offset(12, SimResponseCurve::kLinear, 64, 0, 0, 1, 15);
+  const std::vector<double>& reported = offset.raw.frame_exposures_us;  // 30 ... 7680.
+  ExposureCheck check = CheckExposures(offset, reported);
+  const double longest = reported.back();
+  for (size_t k = 0; k < reported.size(); ++k) {
+    const double truth = ((reported[k] + 15) / (longest + 15)) / (reported[k] / longest);
+    std::printf("offset 15 us: %g us measured x%.4f, true x%.4f\n", reported[k], check.measured_over_reported[k], truth);
+    EXPECT_NEAR(check.measured_over_reported[k] / truth, 1.0, 0.005) << reported[k];
+  }
+  EXPECT_NE(check.Warning().find("30 us reported"), std::string::npos) << check.Warning();
+  EXPECT_NE(check.Warning().find("120 us reported"), std::string::npos) << check.Warning();
+
+  const NonlinearBracket rounding(12, SimResponseCurve::kLinear, 64, 0, 0, 37);
+  check = CheckExposures(rounding, rounding.sim.exposures_us);  // Labelled with the requests.
+  const std::vector<double>& applied = rounding.raw.frame_exposures_us;  // 37, 111, 481, 1924, 7696.
+  for (size_t k = 0; k < applied.size(); ++k) {
+    const double truth = (applied[k] / applied.back()) / (rounding.sim.exposures_us[k] / rounding.sim.exposures_us.back());
+    std::printf("37 us lines reported as requested: %g us measured x%.4f, true x%.4f\n", rounding.sim.exposures_us[k],
+                check.measured_over_reported[k], truth);
+    EXPECT_NEAR(check.measured_over_reported[k] / truth, 1.0, 0.005) << rounding.sim.exposures_us[k];
+  }
+  EXPECT_NE(check.Warning().find("30 us reported"), std::string::npos) << check.Warning();
 }
 
 // Saturated samples get zero weight: where the long exposures saturate, the merge equals the

@@ -69,11 +69,12 @@ Status SimulateBracket(const BracketSimOptions& options, SimulatedBracket* brack
   uint64_t stream = options.seed * 1000003ULL;
   for (double requested_us : options.exposures_us) {
     const double t = options.sensor.AppliedExposureUs(requested_us);  // What the camera reports.
+    const double integrated = options.sensor.IntegratedExposureUs(requested_us);
     Image electrons(scene.width(), scene.height());
     Image ambient(scene.width(), scene.height());
     for (size_t i = 0; i < scene.data().size(); ++i) {
-      electrons.data()[i] = static_cast<float>((scene.data()[i] + options.ambient_e_per_us) * t);
-      ambient.data()[i] = static_cast<float>(options.ambient_e_per_us * t);
+      electrons.data()[i] = static_cast<float>((scene.data()[i] + options.ambient_e_per_us) * integrated);
+      ambient.data()[i] = static_cast<float>(options.ambient_e_per_us * integrated);
     }
     for (int n = 0; n < options.frames_per_exposure; ++n) {
       bracket->frames.push_back(ApplySensor(electrons, options.sensor, ++stream));

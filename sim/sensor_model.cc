@@ -21,6 +21,9 @@ bool SimSensorOptions::Check(std::string* error) const {
     msg << "SimSensorOptions::black_level_dn = " << black_level_dn << ". Violated constraint: [0, 2^bit_depth / 2)";
   } else if (!(exposure_step_us > 0 && std::isfinite(exposure_step_us))) {
     msg << "SimSensorOptions::exposure_step_us = " << exposure_step_us << ". Violated constraint: > 0";
+  } else if (!std::isfinite(exposure_offset_us) || !(exposure_offset_us > -exposure_step_us)) {
+    msg << "SimSensorOptions::exposure_offset_us = " << exposure_offset_us
+        << ". Violated constraint: finite and > -exposure_step_us";
   } else {
     return true;
   }

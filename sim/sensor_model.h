@@ -34,6 +34,10 @@ struct SimSensorOptions {
   // 10-40 us), so the applied exposure is the request rounded to a multiple of this, at least
   // one step. 1 us by default (whole microseconds).
   double exposure_step_us = 1;
+  // Not reported: the sensor integrates light this much longer than the exposure it applies and
+  // reports (a reset or frame-transfer time; negative: shorter). 0 by default. For testing the
+  // exposure check (calib/exposure_check.h).
+  double exposure_offset_us = 0;
 
   // v = f(s) for the configured curve: f(0) = 0, f(1) = 1, strictly increasing on [0, 1],
   // continued linearly below 0 (noise under black) with the slope at 0.
@@ -43,6 +47,8 @@ struct SimSensorOptions {
 
   // The exposure the sensor applies for a request: round(requested / step) steps, at least 1.
   double AppliedExposureUs(double requested_us) const;
+  // What the light is integrated over: AppliedExposureUs + exposure_offset_us (> 0 required).
+  double IntegratedExposureUs(double requested_us) const { return AppliedExposureUs(requested_us) + exposure_offset_us; }
 
   double gain_e_per_dn() const { return full_well_e / ((1 << bit_depth) - 1 - black_level_dn); }
   double saturation_dn() const { return (1 << bit_depth) - 1; }

@@ -66,7 +66,8 @@ Image SimBoardCamera::RenderElectrons() const {
   const Rigid3d sample_from_cam = cam.cam_from_sample.Inverse();
   const Eigen::Vector3d eye = sample_from_cam.translation;
   const int s = options_.render_supersample;
-  const double scale = options_.board_albedo / kPi * options_.electrons_per_radiance_us * exposure_us_;
+  const double scale = options_.board_albedo / kPi * options_.electrons_per_radiance_us *
+                       (exposure_us_ + options_.sensor.exposure_offset_us);
   for (int v = 0; v < cam.height_px; ++v) {
     for (int u = 0; u < cam.width_px; ++u) {
       double sum = 0;

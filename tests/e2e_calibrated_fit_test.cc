@@ -160,6 +160,35 @@ TEST(CalibratedFit, ResponseFromBracketLinearisesShadowMaps) {
   EXPECT_EQ(summary["calibration"]["response_method"].get<std::string>(), "debevec");
 }
 
+// `thinslab calib hdr` checks the reported exposures against the frames: a camera that
+// integrates 15 us longer than it reports (calib/exposure_check.h) is named with the factors of
+// its short exposures; one that applies what it reports passes.
+TEST(CalibratedFit, CalibHdrNamesExposuresTheCameraDidNotApply) {
+  TempDir dir;
+  for (const double offset_us : {0.0, 15.0}) {
+    BracketSimOptions bracket;
+    bracket.dark_frames_per_exposure = 1;
+    bracket.sensor.exposure_offset_us = offset_us;
+    const std::string session = dir / ("offset_" + std::to_string(static_cast<int>(offset_us)));
+    ASSERT_TRUE(SynthesizeBracketSession(bracket, session).ok());
+    const RunResult hdr = RunThinslab("calib hdr " + session);
+    ASSERT_EQ(hdr.exit_code, 0) << hdr.output;
+    const nlohmann::json check = ReadJson(session + "/calib/hdr/summary.json")["groups"][0]["exposure_check"];
+    const double deviation = check["max_deviation"].get<double>();
+    std::printf("exposure offset %.0f us: largest measured/reported deviation %.4f\n", offset_us, deviation);
+    if (offset_us == 0) {
+      EXPECT_LT(deviation, 0.005);
+      EXPECT_EQ(check["warning"], "");
+      EXPECT_EQ(hdr.output.find("warning: "), std::string::npos) << hdr.output;
+    } else {
+      // 30 us reported, 45 integrated: x1.497 relative to the longest (7680 + 15 us).
+      EXPECT_NEAR(deviation, 0.497, 0.01);
+      EXPECT_NE(hdr.output.find("warning: "), std::string::npos) << hdr.output;
+      EXPECT_NE(hdr.output.find("30 us reported"), std::string::npos) << hdr.output;
+    }
+  }
+}
+
 // A 6 x 6 dot scan of the default sample, few photons: fast, for the geometry of the chain.
 SyntheticDotScanOptions SmallDotScanRig() {
   SyntheticDotScanOptions sim;
