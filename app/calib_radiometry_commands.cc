@@ -220,6 +220,9 @@ int RunCalibHdr(int argc, char** argv) {
   parser.AddDouble("read-noise-dn", &read_noise_dn, "read noise when the session has no dark frames [DN]");
   parser.AddInt("threads", &options.num_threads, "threads");
   parser.AddString("out", &out, "output folder (default SESSION/calib/hdr)");
+  std::string exposures = "reported";
+  parser.AddString("exposures", &exposures,
+                   "reported (what the camera says it applied) or measured (reported x the factor the frames show)");
   bool allow_incomplete = false;
   AddIncompleteCaptureOption(&parser, &allow_incomplete);
   Status status = parser.Parse(argc, argv);
@@ -237,6 +240,9 @@ int RunCalibHdr(int argc, char** argv) {
     options.log_domain = true;
   } else {
     return Fail(Status::Error("--weighting " + weighting + ": expected inverse-variance, hat or debevec"));
+  }
+  if (exposures != "reported" && exposures != "measured") {
+    return Fail(Status::Error("--exposures " + exposures + ": expected reported or measured"));
   }
   Session session;
   status = ReadCaptureForCommand(session_dir, allow_incomplete, &session);
@@ -275,7 +281,7 @@ int RunCalibHdr(int argc, char** argv) {
     SessionMergeInfo info;
     status = MergeSessionBracket(session_dir, session, *camera, group.frames, darks,
                                  have_response ? &response : nullptr, options, read_noise_dn, &hdr, &info,
-                                 /*check_exposures=*/true);
+                                 exposures == "measured" ? ExposureCheckMode::kUseMeasured : ExposureCheckMode::kCheck);
     if (!status.ok()) return Fail(status.WithContext(group.name));
     const ExposureCheck& check = info.exposure_check;
     Image image = StackChannels({&hdr.radiance, &hdr.variance, &hdr.all_saturated}, {"radiance", "variance", "saturated"});
@@ -301,7 +307,8 @@ int RunCalibHdr(int argc, char** argv) {
                                    {"measured_over_reported", check.measured_over_reported},
                                    {"pixels", check.pixels},
                                    {"max_deviation", check.measured ? check.max_deviation : -1},
-                                   {"warning", check.Warning()}}}});
+                                   {"warning", check.Warning()},
+                                   {"merged_with", info.merged_with_measured_exposures ? "measured" : "reported"}}}});
     std::cout << group.name << ": " << info.num_frames << " frames, " << info.num_exposures << " exposures, "
               << info.num_darks << " darks, " << hdr.pixels_all_saturated << " pixels saturated everywhere"
               << "; exposures checked against the frames: ";
@@ -312,7 +319,10 @@ int RunCalibHdr(int argc, char** argv) {
     } else {
       std::cout << "not measured (too few well-exposed pixels)\n";
     }
-    if (!check.Warning().empty()) std::cerr << "warning: " << group.name << ": " << check.Warning() << "\n";
+    if (!check.Warning().empty() && !info.merged_with_measured_exposures) {
+      std::cerr << "warning: " << group.name << ": " << check.Warning() << " (--exposures measured merges with the "
+                << "measured ones)\n";
+    }
   }
   status = WriteFileAtomically(JoinPath(staged.path(), "summary.json"), summary.dump(2) + "\n");
   if (status.ok()) status = WriteFileAtomically(JoinPath(staged.path(), "options.ini"), options_ini);

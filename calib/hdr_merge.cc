@@ -392,7 +392,7 @@ Status MergeExposureBracket(const std::vector<HdrFrame>& frames, const HdrMergeO
 Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                            const std::vector<const FrameRecord*>& frames, const std::vector<const FrameRecord*>& darks,
                            const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
-                           HdrImage* hdr, SessionMergeInfo* info, bool check_exposures) {
+                           HdrImage* hdr, SessionMergeInfo* info, ExposureCheckMode exposure_check) {
   *info = SessionMergeInfo();
   if (frames.empty()) return Status::Error(session_dir + ": no frames to merge");
   std::vector<Image> images(frames.size());
@@ -457,10 +457,22 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
   options.gain_e_per_dn = camera.gain_e_per_dn;
   options.read_noise_dn = info->read_noise_dn;
   options.response = response;
-  THINSLAB_RETURN_IF_ERROR(MergeExposureBracket(bracket, options, hdr).WithContext(session_dir));
-  if (check_exposures) {
+  if (exposure_check != ExposureCheckMode::kNone) {
     THINSLAB_RETURN_IF_ERROR(CheckBracketExposures(bracket, options, &info->exposure_check).WithContext(session_dir));
   }
+  if (exposure_check == ExposureCheckMode::kUseMeasured) {
+    const ExposureCheck& check = info->exposure_check;
+    for (HdrFrame& f : bracket) {
+      for (size_t e = 0; e < check.reported_us.size(); ++e) {
+        if (f.exposure_time_us == check.reported_us[e] && check.measured_over_reported[e] > 0) {
+          f.exposure_time_us *= check.measured_over_reported[e];
+          break;
+        }
+      }
+    }
+    info->merged_with_measured_exposures = true;
+  }
+  THINSLAB_RETURN_IF_ERROR(MergeExposureBracket(bracket, options, hdr).WithContext(session_dir));
   info->num_frames = static_cast<int>(frames.size());
   info->num_exposures = static_cast<int>(exposures.size());
   info->num_darks = static_cast<int>(darks.size());

@@ -97,14 +97,22 @@ struct SessionMergeInfo {
   int dark_exposure_mismatches = 0;  // Frames whose darks had another exposure.
   double read_noise_dn = 0;
   std::vector<double> exposures_us;
-  // With check_exposures: measured / reported exposure per distinct exposure
-  // (calib/exposure_check.h); check.Warning() says when the camera does not apply what it reports.
+  // Unless ExposureCheckMode::kNone: measured / reported exposure per distinct exposure
+  // (calib/exposure_check.h) of the reported exposures; Warning() says when the camera does not
+  // apply what it reports.
   ExposureCheck exposure_check;
+  bool merged_with_measured_exposures = false;
+};
+enum class ExposureCheckMode {
+  kNone,
+  kCheck,         // Measure and report; merge with the reported exposures.
+  kUseMeasured,   // Measure, and merge with reported x measured factor where it was measured.
 };
 Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                            const std::vector<const FrameRecord*>& frames, const std::vector<const FrameRecord*>& darks,
                            const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
-                           HdrImage* hdr, SessionMergeInfo* info, bool check_exposures = false);
+                           HdrImage* hdr, SessionMergeInfo* info,
+                           ExposureCheckMode exposure_check = ExposureCheckMode::kNone);
 
 // The hat weight of Debevec & Malik 1997 (Eq. 4) on black-subtracted z in [0, z_sat],
 // normalised to 1 at mid-range; 0 at and beyond both ends.

@@ -7,8 +7,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "app/stability_cases.h"
@@ -160,9 +162,35 @@ TEST(CalibratedFit, ResponseFromBracketLinearisesShadowMaps) {
   EXPECT_EQ(summary["calibration"]["response_method"].get<std::string>(), "debevec");
 }
 
+// Spread of the merged radiance's ratio to the true scene over the scene's brightness: the
+// largest over the smallest median ratio of the bins of 1/2 decade holding >= 200 pixels.
+double RadianceRatioSpread(const std::string& hdr_exr, const std::string& scene_exr) {
+  Image hdr, scene;
+  EXPECT_TRUE(ReadExr(hdr_exr, &hdr).ok());
+  EXPECT_TRUE(ReadExr(scene_exr, &scene).ok());
+  std::map<int, std::vector<double>> bins;
+  const int radiance = hdr.ChannelIndex("radiance"), saturated = hdr.ChannelIndex("saturated");
+  for (int i = 0; i < scene.width() * scene.height(); ++i) {
+    const double truth = scene.data()[i];
+    if (!(truth > 0) || hdr.data()[i * hdr.num_channels() + saturated] > 0) continue;
+    bins[static_cast<int>(std::floor(2 * std::log10(truth)))].push_back(hdr.data()[i * hdr.num_channels() + radiance] /
+                                                                        truth);
+  }
+  double lo = 1e300, hi = 0;
+  for (auto& [bin, ratios] : bins) {
+    if (ratios.size() < 200) continue;
+    std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
+    lo = std::min(lo, ratios[ratios.size() / 2]);
+    hi = std::max(hi, ratios[ratios.size() / 2]);
+  }
+  return hi / lo;
+}
+
 // `thinslab calib hdr` checks the reported exposures against the frames: a camera that
 // integrates 15 us longer than it reports (calib/exposure_check.h) is named with the factors of
-// its short exposures; one that applies what it reports passes.
+// its short exposures; one that applies what it reports passes. Merged with the reported
+// exposures, the offset camera's radiance is 1.5x too high where only the shortest frame is
+// unsaturated; `--exposures measured` makes it proportional to the scene again.
 TEST(CalibratedFit, CalibHdrNamesExposuresTheCameraDidNotApply) {
   TempDir dir;
   for (const double offset_us : {0.0, 15.0}) {
@@ -185,6 +213,21 @@ TEST(CalibratedFit, CalibHdrNamesExposuresTheCameraDidNotApply) {
       EXPECT_NEAR(deviation, 0.497, 0.01);
       EXPECT_NE(hdr.output.find("warning: "), std::string::npos) << hdr.output;
       EXPECT_NE(hdr.output.find("30 us reported"), std::string::npos) << hdr.output;
+    }
+    const std::string file = ReadJson(session + "/calib/hdr/summary.json")["groups"][0]["file"];
+    const double spread = RadianceRatioSpread(session + "/calib/hdr/" + file, session + "/ground_truth/scene.exr");
+    const RunResult measured = RunThinslab("calib hdr " + session + " --exposures measured --out " + session + "/hdr_m");
+    ASSERT_EQ(measured.exit_code, 0) << measured.output;
+    EXPECT_EQ(measured.output.find("warning: "), std::string::npos) << measured.output;
+    EXPECT_EQ(ReadJson(session + "/hdr_m/summary.json")["groups"][0]["exposure_check"]["merged_with"], "measured");
+    const double spread_measured = RadianceRatioSpread(session + "/hdr_m/" + file, session + "/ground_truth/scene.exr");
+    std::printf("offset %.0f us: radiance / scene spread over brightness x%.4f (reported), x%.4f (measured)\n",
+                offset_us, spread, spread_measured);
+    EXPECT_LT(spread_measured, 1.01);
+    if (offset_us == 0) {
+      EXPECT_LT(spread, 1.01);
+    } else {
+      EXPECT_GT(spread, 1.3);
     }
   }
 }
