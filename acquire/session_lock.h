@@ -15,6 +15,11 @@ namespace thinslab {
 
 constexpr char kSessionLockName[] = "acquire.lock";
 
+// Whether a process holds `session_dir`'s lock now, without creating anything: `holder_pid` gets
+// the pid written in the lock file when held. (A free lock is taken for an instant and released.)
+enum class SessionLockState { kNoLockFile, kFree, kHeld };
+SessionLockState ProbeSessionLock(const std::string& session_dir, std::string* holder_pid);
+
 class SessionFolderLock {
  public:
   SessionFolderLock() = default;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include <iostream>
 
+#include "acquire/session_lock.h"
 #include "app/commands.h"
 #include "app/option_parser.h"
 #include "core/session_io.h"
@@ -25,7 +26,20 @@ int RunInfo(int argc, char** argv) {
     std::cerr << "error: " << status.message() << "\n";
     return 1;
   }
-  std::cout << SummarizeSession(session) << SummarizeCompleteness(AssessCapture(session, journaled)) << "valid: yes\n";
+  std::cout << SummarizeSession(session) << SummarizeCompleteness(AssessCapture(session, journaled));
+  if (session.acquisition.present && session.acquisition.state == "running") {
+    // "running" is either a capture in progress or one that was killed: the folder lock tells.
+    std::string pid;
+    if (ProbeSessionLock(session_dir, &pid) == SessionLockState::kHeld) {
+      std::cout << "Writer: thinslab acquire" << (pid.empty() ? "" : " (process " + pid + ")")
+                << " is capturing into this folder now\n";
+    } else {
+      std::cout << "Writer: none (no process holds " << kSessionLockName
+                << "): the capture was killed or crashed; `thinslab acquire <same options> --resume` continues it, "
+                   "`thinslab acquire fold-journal` writes its journaled frames into session.json\n";
+    }
+  }
+  std::cout << "valid: yes\n";
   return 0;
 }
 
