@@ -38,6 +38,7 @@
 #include "sim/sim_board_camera.h"
 #include "sim/sim_dot_monitor.h"
 #include "sim/sim_session.h"
+#include "sim/synthesize_dot_scan_session.h"
 
 namespace thinslab {
 namespace {
@@ -675,6 +676,9 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
     bracket.steps = 5;
   }
   std::string name = dot_scan ? "dot_scan" : gamma ? "display_gamma" : "exposure_bracket", exposures;
+  bool sim_sample = false;
+  SyntheticDotScanOptions sample_sim;  // --sim-sample: the sample and its truth (sim/synthesize_dot_scan_session.h).
+  int sim_photons_k = static_cast<int>(sample_sim.sample.photons_per_region / 1000);
   OptionParser parser("acquire " + kind);
   AddCommonOptions(&parser, &common, sim);
   if (sim) {
@@ -690,6 +694,11 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
     parser.AddBool("capture-all-dots", &dots.capture_all_dots, "capture the all-dots frame without sample");
     parser.AddBool("capture-dark", &dots.capture_dark, "capture a dark bracket with the sample");
     parser.AddString("sample-state", &dots.sample_state, "sample state of the dot frames");
+    if (sim) {
+      parser.AddBool("sim-sample", &sim_sample, "put the region sample of `thinslab sim dot-scan` in the simulated "
+                                                "light path (Monte Carlo tables; writes ground_truth/)");
+      parser.AddInt("sim-photons-k", &sim_photons_k, "--sim-sample: Monte Carlo photons per rough region, thousands");
+    }
   } else if (gamma) {
     parser.AddInt("steps", &gamma_session.steps, "drive levels 0, 1/steps, ..., 1");
     parser.AddInt("repeats", &gamma_session.repeats, "measurements of every level, each repeat in a new random order");
@@ -721,7 +730,26 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   Camera* camera = nullptr;
   RigInfo rig;
   SampleChanger change;
-  if (sim) {
+  std::shared_ptr<const SlabSample> sample;
+  if (sim && sim_sample) {
+    if (sim_photons_k < 1) return Fail(Status::Error("thinslab acquire: option --sim-photons-k: must be >= 1"));
+    monitor.gamma_table = devices.gamma_table;
+    sample_sim.rig = monitor;
+    sample_sim.sample.photons_per_region = static_cast<int64_t>(sim_photons_k) * 1000;
+    sample_sim.name = name;
+    status = BuildDotScanRig(sample_sim, &sim_monitor, &sample);
+    if (!status.ok()) return Fail(status);
+    display = sim_monitor.get();
+    camera = sim_monitor->camera();
+    rig = sim_monitor->rig();
+    // The sample rectangle and the truth's grid, as `thinslab sim dot-scan` records them.
+    rig.sample.region_min_m = sample->options().min_m;
+    rig.sample.region_max_m = sample->options().max_m;
+    rig.sample.pixel_pitch_m = sample_sim.truth_pitch_m;
+    rig.sample.glass_ior = sample->options().regions.front().material.eta;
+    change = sim_monitor->sample_changer();
+    sync = SyncForSensor(sync, monitor.sensor);
+  } else if (sim) {
     monitor.gamma_table = devices.gamma_table;
     status = SimDotMonitor::Create(monitor, &sim_monitor);
     if (!status.ok()) return Fail(status);
@@ -764,13 +792,20 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
                                        : gamma  ? PlanDisplayGammaSession(gamma_session, period).size()
                                                 : PlanBracketSession(bracket_session, period).size());
   const std::string session_kind = dot_scan ? "dot_scan" : gamma ? "display_gamma" : "exposure_bracket";
-  return Finish(kind, common, plan, planned, MakeHeader(name, session_kind, rig, sim), camera, sim ? "sim" : common.camera,
+  const int exit_code = Finish(kind, common, plan, planned, MakeHeader(name, session_kind, rig, sim), camera, sim ? "sim" : common.camera,
                 [&](Camera* cam, SessionWriter* writer) {
                   return dot_scan ? RunDotScanSession(dots, cam, &projector, change, writer)
                          : gamma  ? RunDisplayGammaSession(gamma_session, cam, &projector, change, writer)
                                   : RunBracketSession(bracket_session, cam, &projector, change, writer);
                 },
                 &tracker);
+  // The truth of --sim-sample, once the capture is complete (not before: a new session's folder
+  // must be empty when the acquisition starts).
+  if (exit_code == 0 && sample && !FileExists(JoinPath(common.out, "ground_truth/truth.json"))) {
+    const Status truth = WriteDotScanTruth(sample_sim, *sample, *sim_monitor, 0, common.out);
+    if (!truth.ok()) return Fail(truth);
+  }
+  return exit_code;
 }
 
 int FoldJournal(int argc, char** argv) {

@@ -80,32 +80,9 @@ Status BuildDotScanRig(const SyntheticDotScanOptions& options, std::unique_ptr<S
   return Status::Ok();
 }
 
-Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const std::string& session_dir,
-                                SyntheticDotScanResult* result) {
-  std::unique_ptr<SimDotMonitor> monitor;
-  std::shared_ptr<const SlabSample> sample;
-  THINSLAB_RETURN_IF_ERROR(BuildDotScanRig(options, &monitor, &sample));
-  const SlabSampleOptions& so = sample->options();
-
-  RigInfo rig = monitor->rig();
-  rig.sample.region_min_m = so.min_m;
-  rig.sample.region_max_m = so.max_m;
-  rig.sample.pixel_pitch_m = options.truth_pitch_m;
-  rig.sample.glass_ior = so.regions.front().material.eta;
-  DotScanSessionOptions session = options.session;
-  session.sync = SyncForSensor(session.sync, options.rig.sensor);
-  session.monitor_width_px = options.rig.monitor_width_px;
-  session.monitor_height_px = options.rig.monitor_height_px;
-
-  const auto start = std::chrono::steady_clock::now();
-  SessionWriter writer;
-  THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "dot_scan", rig, &writer));
-  THINSLAB_RETURN_IF_ERROR(
-      RunDotScanSession(session, monitor->camera(), monitor.get(), monitor->sample_changer(), &writer));
-  THINSLAB_RETURN_IF_ERROR(writer.Save());
-  const double acquisition_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-
-  // Ground truth.
+Status WriteDotScanTruth(const SyntheticDotScanOptions& options, const SlabSample& sample, const SimDotMonitor& monitor,
+                         double acquisition_s, const std::string& session_dir) {
+  const SlabSampleOptions& so = sample.options();
   const std::string truth_dir = JoinPath(session_dir, "ground_truth");
   THINSLAB_RETURN_IF_ERROR(CreateDirectories(truth_dir));
   const int map_w = static_cast<int>(std::lround((so.max_m.x() - so.min_m.x()) / options.truth_pitch_m));
@@ -114,7 +91,7 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
   for (int j = 0; j < regions.height(); ++j) {
     for (int i = 0; i < regions.width(); ++i) {
       const Eigen::Vector2d x = so.min_m + Eigen::Vector2d(i + 0.5, j + 0.5) * options.truth_pitch_m;
-      regions.at(i, j) = static_cast<float>(sample->RegionIndexAt(x));
+      regions.at(i, j) = static_cast<float>(sample.RegionIndexAt(x));
     }
   }
   regions.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
@@ -124,17 +101,17 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
 
   std::vector<std::string> table_channels;
   int bins = 0;
-  for (int k = 0; k < sample->num_regions(); ++k) {
-    if (sample->table(k)) {
+  for (int k = 0; k < sample.num_regions(); ++k) {
+    if (sample.table(k)) {
       table_channels.push_back("region_" + std::to_string(k));
-      bins = sample->table(k)->bins;
+      bins = sample.table(k)->bins;
     }
   }
   if (!table_channels.empty()) {
     Image tables(bins, bins, table_channels);
     int c = 0;
-    for (int k = 0; k < sample->num_regions(); ++k) {
-      const SlabBtdfTable* t = sample->table(k);
+    for (int k = 0; k < sample.num_regions(); ++k) {
+      const SlabBtdfTable* t = sample.table(k);
       if (!t) continue;
       for (int row = 0; row < bins; ++row) {
         for (int col = 0; col < bins; ++col) tables.at(col, row, c) = t->rho[row * bins + col];
@@ -171,11 +148,11 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
                  {"photons_per_region", so.photons_per_region},
                  {"max_interactions", so.max_interactions},
                  {"seed", so.seed},
-                 {"tracing_s", sample->tracing_seconds()}};
+                 {"tracing_s", sample.tracing_seconds()}};
   nlohmann::json regions_json = nlohmann::json::array();
-  for (int k = 0; k < sample->num_regions(); ++k) {
-    const SlabRegion& r = sample->region(k);
-    const SlabBtdfTable* t = sample->table(k);
+  for (int k = 0; k < sample.num_regions(); ++k) {
+    const SlabRegion& r = sample.region(k);
+    const SlabBtdfTable* t = sample.table(k);
     nlohmann::json rj = {{"index", k},
                          {"name", r.name},
                          {"min_m", Vec(r.min_m)},
@@ -186,8 +163,8 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
                          {"rho_d", r.material.rho_d},
                          {"k_s", r.material.k_s},
                          {"smooth", r.material.IsSmooth()},
-                         {"view_direction", Vec(sample->ViewDirection(k))},
-                         {"view_direction_optical", Vec(SlabSample::ToOpticalFrame(sample->ViewDirection(k)))}};
+                         {"view_direction", Vec(sample.ViewDirection(k))},
+                         {"view_direction_optical", Vec(SlabSample::ToOpticalFrame(sample.ViewDirection(k)))}};
     if (t) {
       rj["table"] = {{"channel", "region_" + std::to_string(k)},
                      {"transmitted", t->transmitted},
@@ -197,7 +174,7 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
                      {"seed", t->seed}};
     } else {
       rj["flat_slab_transmittance_at_view"] =
-          SlabSample::FlatSlabTransmittance(sample->ViewDirection(k).z(), r.material.eta);
+          SlabSample::FlatSlabTransmittance(sample.ViewDirection(k).z(), r.material.eta);
     }
     regions_json.push_back(rj);
   }
@@ -210,7 +187,7 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
               {"dot_radiance", m.dot_radiance},
               {"black_radiance", m.black_radiance},
               {"electrons_per_radiance_us", m.electrons_per_radiance_us},
-              {"camera_centre_in_sample_m", Vec(monitor->CameraCentreInSample())},
+              {"camera_centre_in_sample_m", Vec(monitor.CameraCentreInSample())},
               {"render_supersample", m.render_supersample},
               {"blur_sigma_px", m.blur_sigma_px},
               {"seed", m.seed}};
@@ -221,6 +198,35 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
                  {"noise", m.sensor.enable_noise}};
   j["acquisition_s"] = acquisition_s;
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(truth_dir, "truth.json"), j.dump(2) + "\n"));
+  return Status::Ok();
+}
+
+Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const std::string& session_dir,
+                                SyntheticDotScanResult* result) {
+  std::unique_ptr<SimDotMonitor> monitor;
+  std::shared_ptr<const SlabSample> sample;
+  THINSLAB_RETURN_IF_ERROR(BuildDotScanRig(options, &monitor, &sample));
+  const SlabSampleOptions& so = sample->options();
+
+  RigInfo rig = monitor->rig();
+  rig.sample.region_min_m = so.min_m;
+  rig.sample.region_max_m = so.max_m;
+  rig.sample.pixel_pitch_m = options.truth_pitch_m;
+  rig.sample.glass_ior = so.regions.front().material.eta;
+  DotScanSessionOptions session = options.session;
+  session.sync = SyncForSensor(session.sync, options.rig.sensor);
+  session.monitor_width_px = options.rig.monitor_width_px;
+  session.monitor_height_px = options.rig.monitor_height_px;
+
+  const auto start = std::chrono::steady_clock::now();
+  SessionWriter writer;
+  THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "dot_scan", rig, &writer));
+  THINSLAB_RETURN_IF_ERROR(
+      RunDotScanSession(session, monitor->camera(), monitor.get(), monitor->sample_changer(), &writer));
+  THINSLAB_RETURN_IF_ERROR(writer.Save());
+  const double acquisition_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  THINSLAB_RETURN_IF_ERROR(WriteDotScanTruth(options, *sample, *monitor, acquisition_s, session_dir));
   if (result) {
     result->sample = sample;
     result->rig = rig;

@@ -55,6 +55,12 @@ struct SyntheticDotScanResult {
 Status BuildDotScanRig(const SyntheticDotScanOptions& options, std::unique_ptr<SimDotMonitor>* rig,
                        std::shared_ptr<const SlabSample>* sample);
 
+// Writes <session_dir>/ground_truth/ (regions.exr, btdf_tables.exr, truth.json; see the top of
+// this file) for a dot scan of `sample` on `monitor`, built from `options` (BuildDotScanRig);
+// `acquisition_s` is recorded. Also used by `thinslab acquire dot-scan --sim-sample`.
+Status WriteDotScanTruth(const SyntheticDotScanOptions& options, const SlabSample& sample, const SimDotMonitor& monitor,
+                         double acquisition_s, const std::string& session_dir);
+
 // `session_dir` must not exist yet (or be empty). `result` may be null.
 Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const std::string& session_dir,
                                 SyntheticDotScanResult* result = nullptr);
