@@ -168,6 +168,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   if (!processing.dot_distance_warning.empty()) {
     std::cerr << "warning: " << processing.dot_geometry_source << ": " << processing.dot_distance_warning << "\n";
   }
+  if (!processing.dark_level_warning.empty()) {
+    std::cerr << "warning: " << session_dir << "/" << processing.dark_level_warning << "\n";
+  }
   DmfMaps maps;
   THINSLAB_RETURN_IF_ERROR(FitDualMicrofacetMaps(slices, run.fit, &maps));
   for (const auto& [x, y] : pixels) {
@@ -314,6 +317,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
                            {"error_sigma_m", processing.dot_distance_error_sigma_m},
                            {"correction_m", processing.dot_distance_correction_m},
                            {"warning", processing.dot_distance_warning}};
+  j["dark_frame"] = {{"exposure_us", processing.dark_exposure_us},
+                     {"median_fraction_of_range_at_sample_points", processing.dark_fraction_of_range},
+                     {"warning", processing.dark_level_warning}};
   j["dot_geometry_source"] = processing.dot_geometry_source;
   j["calibration"] = CalibrationSummaryJson(processing.calibration);
   j["capture"] = CaptureSummaryJson(processing.capture);

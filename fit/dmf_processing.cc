@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <set>
 #include <sstream>
@@ -103,6 +104,38 @@ bool DmfProcessingOptions::Check(std::string* error) const {
   *error = e.str();
   return error->empty();
 }
+
+namespace {
+
+Status MeasureDarkLevel(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                        const std::vector<const FrameRecord*>& darks, const BoardRectifier& rectifier,
+                        DmfProcessingReport* report) {
+  const double range = camera.saturation_dn - camera.black_level_dn;
+  const FrameRecord* longest = nullptr;
+  for (const FrameRecord* d : darks) {
+    if (d->camera_id == camera.id && (longest == nullptr || d->exposure_time_us > longest->exposure_time_us)) longest = d;
+  }
+  if (longest == nullptr || !(range > 0)) return Status::Ok();
+  Image dark;
+  THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *longest, &dark));
+  std::vector<float> at_points = rectifier.Rectify(dark).data();
+  std::nth_element(at_points.begin(), at_points.begin() + at_points.size() / 2, at_points.end());
+  report->dark_exposure_us = longest->exposure_time_us;
+  report->dark_fraction_of_range = at_points[at_points.size() / 2] / range;
+  if (report->dark_fraction_of_range > kMaxDarkFractionOfRange) {
+    char text[512];
+    std::snprintf(text, sizeof(text),
+                  "%s: at the sample points the dark frame (display black, with the sample) has a median of %.0f %% "
+                  "of the camera's range at %.0f us: the display's black level (or ambient light) leaves the dots' "
+                  "lobes the rest, and its shot noise hides their tails, so lobes read narrower than they are "
+                  "(flagged specular). Shorten the longest exposure or use a display with a darker black",
+                  longest->file.c_str(), 100 * report->dark_fraction_of_range, longest->exposure_time_us);
+    report->dark_level_warning = text;
+  }
+  return Status::Ok();
+}
+
+}  // namespace
 
 Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingOptions& options, DmfSliceSet* slices,
                             DmfProcessingReport* report) {
@@ -231,6 +264,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   // 2-3. One dot at a time: merge, rectify, Eq. 12.
   t = std::chrono::steady_clock::now();
   const auto darks = session.UsableFrames("dark", sample_state);
+  THINSLAB_RETURN_IF_ERROR(MeasureDarkLevel(session_dir, session, camera, darks, rectifier, report));
   // A of Eq. 12 with the dot radius L_q was measured with (L_q A is the dot's intensity).
   const double dot_radius_px = calibrated.present ? calibrated.dot_radius_px : options.dot_radius_px;
   const double dot_area = kPi * Sqr(dot_radius_px * monitor.pixel_pitch_m);

@@ -54,6 +54,13 @@ struct DmfProcessingReport {
   // `calib dots --refine-distance`), and MonitorDistanceWarning's text ("" = none).
   double dot_distance_error_m = 0, dot_distance_error_sigma_m = 0, dot_distance_correction_m = 0;
   std::string dot_distance_warning;
+  // The longest-exposure dark frame with the sample (display black), rectified onto the sample
+  // grid: its median over the grid points as a share of the camera's range, and a warning when
+  // that exceeds kMaxDarkFractionOfRange. A display's black level (or ambient light) seen
+  // through the sample takes that share of the range from the dots' lobes, and its shot noise
+  // hides their tails, so they read narrower than they are (docs/known_gaps.md).
+  double dark_exposure_us = 0, dark_fraction_of_range = 0;
+  std::string dark_level_warning;
   double median_dot_radiance = 0;  // L_q [DN/us].
   int saturated_points = 0, outside_points = 0;
   double geometry_s = 0, merge_s = 0, total_s = 0;
@@ -62,6 +69,8 @@ struct DmfProcessingReport {
   std::string dot_geometry_source;  // The all-dots frame used, or the rig.json file.
   CaptureCompleteness capture;      // What was read.
 };
+
+inline constexpr double kMaxDarkFractionOfRange = 0.2;
 
 Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingOptions& options, DmfSliceSet* slices,
                             DmfProcessingReport* report);
