@@ -261,14 +261,15 @@ Status FoldJournalIntoManifest(const std::string& session_dir, JournalFoldResult
   *result = JournalFoldResult();
   const std::string manifest = JoinPath(session_dir, kSessionManifestName);
   if (!FileExists(manifest)) return Status::Error(session_dir + ": not a capture session (no " + kSessionManifestName + ")");
-  SessionFolderLock lock;
-  THINSLAB_RETURN_IF_ERROR(lock.Acquire(session_dir));
   Session before;
   THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &before));
-  if (!before.acquisition.present) {
+  if (!before.acquisition.present) {  // Refused before the lock file is created in a folder not ours.
     return Status::Error(manifest + ": no \"acquisition\" record: the session was not written by `thinslab acquire` "
                                     "and has no journal to fold");
   }
+  SessionFolderLock lock;
+  THINSLAB_RETURN_IF_ERROR(lock.Acquire(session_dir));
+  THINSLAB_RETURN_IF_ERROR(ReadSession(session_dir, &before));  // Again, under the lock.
   // The same repair a resume makes before it captures: temporaries and frame files of a killed
   // write go, a journal line the kill cut short is dropped, the journaled records are taken.
   RemoveStaleTemporaries(session_dir);

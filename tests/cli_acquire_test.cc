@@ -296,6 +296,7 @@ TEST_F(CliAcquireTest, FoldJournalWritesAKilledCapturesFramesAndARunningCaptureK
   const RunResult simulated = RunThinslab("acquire fold-journal " + *dir_ / "simulated");
   EXPECT_NE(simulated.exit_code, 0);
   EXPECT_NE(simulated.output.find("no \"acquisition\" record"), std::string::npos) << simulated.output;
+  EXPECT_FALSE(fs::exists(*dir_ / "simulated/acquire.lock")) << "a refused fold must leave the folder as it was";
 }
 
 // Brightest 3x3 mean of an image and where it is.
