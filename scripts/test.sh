@@ -3,7 +3,8 @@
 # THE test command (README, .ci/run): installs Debian packages, configures, builds, runs every
 # test; then, unless THINSLAB_SKIP_SANITIZERS=1, rebuilds with ASan+UBSan and runs every test
 # again except those labelled `matrix` (simulation-heavy stability and knob sweeps, whose code
-# the e2e tests run under the sanitizers too: the laser lobe's seed and g entry, the tau/g stability matrix).
+# the e2e tests run under the sanitizers too: the laser lobe's seed and g entry, the tau/g stability matrix,
+# the acquired dot-scan chain of cli_gamma_test).
 # Measured on the 2-core CI machine: see docs/benchmarks.md (CI time).
 set -euo pipefail
 cd "$(dirname "$0")/.."
