@@ -16,8 +16,10 @@ cmake --build build -j"$jobs"
 (cd build && ctest --output-on-failure -j"$jobs")
 
 if [ "${THINSLAB_SKIP_SANITIZERS:-0}" != "1" ]; then
+  # -g1: line tables and function names, all the sanitizers' stack traces need; full debug info
+  # made the sanitizer build about half of the CI time (docs/benchmarks.md, CI).
   cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTHINSLAB_SANITIZE=ON \
-    -DTHINSLAB_BUILD_BENCH=OFF -DTHINSLAB_WERROR=ON
+    -DTHINSLAB_BUILD_BENCH=OFF -DTHINSLAB_WERROR=ON -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG"
   cmake --build build-asan -j"$jobs"
   # System libraries (glib, SDL, X11) keep some allocations until exit; scripts/lsan.supp lists
   # those by library name only, never thinslab code.
