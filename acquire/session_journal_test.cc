@@ -132,6 +132,82 @@ TEST(AcquisitionRun, DeviceFailingMidSessionLeavesAManifestThatSaysWhatHappened)
   EXPECT_NE(journal.find("failed at 8 frames: camera 'cam0' (fake)"), std::string::npos) << journal;
 }
 
+// A display or a laser that fails mid-session (window lost, USB relay unplugged): the frames
+// before stay, and the manifest's failed event names that device, not the camera.
+class FailingProjector : public Projector {
+ public:
+  explicit FailingProjector(int fail_from) : fail_from_(fail_from) {}
+  Status ShowPattern(const std::string& pattern) override {
+    if (calls_++ >= fail_from_) return Status::Error("SDL_RenderPresent failed showing '" + pattern + "'");
+    return Status::Ok();
+  }
+
+ private:
+  int fail_from_;
+  int calls_ = 0;
+};
+
+class FailingLaser : public Laser {
+ public:
+  explicit FailingLaser(int fail_from) : fail_from_(fail_from) {}
+  Status SetEmission(bool on) override {
+    if (calls_++ >= fail_from_) return Status::Error(std::string("LIBUSB_ERROR_NO_DEVICE switching ") + (on ? "on" : "off"));
+    return Status::Ok();
+  }
+
+ private:
+  int fail_from_;
+  int calls_ = 0;
+};
+
+TEST(AcquisitionRun, DisplayOrLaserFailingMidSessionIsTheDeviceTheManifestNames) {
+  for (const bool laser_fails : {false, true}) {
+    SCOPED_TRACE(laser_fails ? "laser" : "display");
+    TempDir dir;
+    CountingFakeCamera camera;
+    FailingProjector failing_display(laser_fails ? 1000 : 3);
+    FailingLaser failing_laser(laser_fails ? 3 : 1000);
+    DeviceFailureTracker tracker;
+    TrackedProjector display(&failing_display, "display 1", &tracker);
+    TrackedLaser laser(&failing_laser, "laser 16c0:05df (hid-relay)", &tracker);
+    // One pattern and one laser state per frame, as the sessions do.
+    const SessionScript script = [&](Camera* recording, SessionWriter* writer) {
+      for (int i = 0; i < 8; ++i) {
+        THINSLAB_RETURN_IF_ERROR(display.ShowPattern(i % 2 ? "flat" : ""));
+        THINSLAB_RETURN_IF_ERROR(laser.SetEmission(i % 2 == 1));
+        FrameRecord templ;
+        templ.camera_id = recording->info().id;
+        templ.kind = i % 2 ? "reference" : "dark";
+        templ.sample_state = "clean";
+        THINSLAB_RETURN_IF_ERROR(CaptureWithRetries(recording, templ, /*max_retries=*/2, writer));
+      }
+      return Status::Ok();
+    };
+    AcquisitionRunOptions run;
+    run.session_dir = dir / "s";
+    run.plan = "p";
+    run.planned_frames = 8;
+    run.camera_name = "fake";
+    run.tracker = &tracker;
+    AcquisitionResult result;
+    const Status status = RunAcquisition(run, Header(camera.info()), &camera, script, &result);
+    ASSERT_FALSE(status.ok());
+    EXPECT_EQ(result.state, "failed");
+    Session session;
+    ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
+    EXPECT_EQ(session.acquisition.state, "failed");
+    const AcquisitionEvent& last = session.acquisition.events.back();
+    EXPECT_EQ(last.event, "failed");
+    EXPECT_EQ(last.device, laser_fails ? "laser 16c0:05df (hid-relay)" : "display 1");
+    EXPECT_NE(last.message.find(laser_fails ? "LIBUSB_ERROR_NO_DEVICE" : "SDL_RenderPresent"), std::string::npos)
+        << last.message;
+    // Three frames were taken before the fourth light state failed; none was captured under it.
+    ASSERT_EQ(session.frames.size(), 3u);
+    for (const FrameRecord& f : session.frames) EXPECT_EQ(f.status, FrameStatus::kOk);
+    EXPECT_EQ(session.acquisition.camera_captures, 3);
+  }
+}
+
 TEST(AcquisitionRun, ResumeAfterFailureCompletesWithoutLosingOrDuplicatingFrames) {
   TempDir dir;
   AcquisitionResult result;

@@ -441,8 +441,12 @@ Status AravisCamera::Rearm(const std::string& reason) {
     // The camera dropped our control channel (heartbeat lost during an idle gap, a reboot or
     // another application): take it back, or say who holds it.
     if (!arv_gv_device_take_control(gv, &error)) {
+      // A timeout is a camera that no longer answers at all; a refusal is another controller.
+      const bool silent = error != nullptr && g_error_matches(error, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_TIMEOUT);
       return Status::Error(device_name_ + ": " + reason + "; cannot take control of the camera again (" +
-                           TakeMessage(&error) + "): another application may be controlling it");
+                           TakeMessage(&error) + "): " +
+                           (silent ? "the camera does not answer (unplugged, powered off or unreachable)"
+                                   : "another application may be controlling it"));
     }
     g_clear_error(&error);
     counters_["control_regained"] += 1;

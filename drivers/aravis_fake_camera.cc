@@ -171,6 +171,13 @@ void AravisFakeCamera::DropControl() {
   arv_fake_camera_write_register(arv_gv_fake_camera_get_fake_camera(Gv(gv_fake_)), kControlChannelPrivilegeRegister, 0);
 }
 
+bool AravisFakeCamera::ControlHeld() const {
+  guint32 privilege = 0;
+  arv_fake_camera_read_register(arv_gv_fake_camera_get_fake_camera(Gv(gv_fake_)), kControlChannelPrivilegeRegister,
+                                &privilege);
+  return privilege != 0;
+}
+
 uint64_t AravisFakeCamera::frames_served() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return frames_served_;

@@ -69,6 +69,9 @@ class AravisFakeCamera {
   // Clears the camera's control-channel privilege register, as a camera does when its
   // heartbeat times out or it is reset: the controller must take control again.
   void DropControl();
+  // Whether the camera still grants a controller its control channel (privilege register
+  // non-zero): it clears it when the controller's heartbeat times out.
+  bool ControlHeld() const;
 
   uint64_t frames_served() const;
   // Frames whose source callback failed (they were sent black); the last message.

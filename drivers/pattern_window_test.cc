@@ -182,6 +182,24 @@ TEST_F(PatternWindowXvfbTest, GammaTableIsInvertedOnTheWayToTheScreen) {
   }
 }
 
+// Present, then settle: ShowPattern returns only after the pattern was presented and the
+// settle time has passed, so an exposure started after it sees the settled pattern.
+TEST_F(PatternWindowXvfbTest, ShowPatternReturnsAfterTheSettleTime) {
+  PatternWindowOptions options;
+  options.settle_s = 0.25;
+  std::unique_ptr<PatternWindow> window;
+  ASSERT_TRUE(OpenPatternWindow(options, &window).ok());
+  for (const char* pattern : {"flat", ""}) {
+    const auto start = std::chrono::steady_clock::now();
+    ASSERT_TRUE(window->ShowPattern(pattern).ok());
+    const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_GE(elapsed_s, options.settle_s) << "pattern '" << pattern << "'";
+    Image img;
+    ASSERT_TRUE(window->ReadBackFramebuffer(&img).ok());
+    EXPECT_EQ(img.at(3, 3), std::string(pattern) == "flat" ? 255.0f : 0.0f) << "pattern '" << pattern << "'";
+  }
+}
+
 TEST_F(PatternWindowXvfbTest, DisplayIndexOutOfRangeNamesIndexAndCount) {
   PatternWindowOptions options;
   options.display_index = 3;

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "acquire/capture_with_retries.h"
+#include "acquire/session_journal.h"
 #include "acquire/shadow_map_session.h"
 #include "core/file.h"
 #include "core/session_io.h"
@@ -115,6 +116,12 @@ double Stat(const std::map<std::string, double>& stats, const std::string& key) 
   const auto it = stats.find(key);
   EXPECT_NE(it, stats.end()) << "statistics() lacks \"" << key << "\"";
   return it == stats.end() ? -1 : it->second;
+}
+
+// The driver's own counters appear once they first count.
+double StatOrZero(const std::map<std::string, double>& stats, const std::string& key) {
+  const auto it = stats.find(key);
+  return it == stats.end() ? 0 : it->second;
 }
 
 TEST(AravisFakeCamera, OpensByIpAndDeliversTheInjectedMono16ImageExactly) {
@@ -536,7 +543,10 @@ TEST(AravisFakeCamera, LostPacketsWithResendOffFailAndAreRecordedAsFailed) {
 }
 
 // Idle gaps between triggers longer than both the frame timeout and the camera's heartbeat
-// timeout: Aravis's heartbeat keeps control and the stream stays armed.
+// timeout: Aravis's heartbeat keeps control and the stream stays armed. Had the heartbeat
+// stopped, the camera would have cleared its privilege register and stopped streaming (the fake
+// checks the heartbeat's age on the next control packet), and the capture would have needed a
+// re-arm.
 TEST(AravisFakeCamera, CaptureAfterAnIdleGapLongerThanTheHeartbeatTimeout) {
   PatternSource source(65535);
   AravisFakeCameraOptions fake_options;
@@ -548,10 +558,61 @@ TEST(AravisFakeCamera, CaptureAfterAnIdleGapLongerThanTheHeartbeatTimeout) {
   CapturedFrame frame;
   ASSERT_TRUE(camera->Capture(&frame).ok());
   std::this_thread::sleep_for(std::chrono::milliseconds(2000));
+  EXPECT_TRUE(fake->ControlHeld()) << "the camera dropped control during the idle gap: no heartbeat reached it";
   const Status status = camera->Capture(&frame);
   ASSERT_TRUE(status.ok()) << status.message();
   EXPECT_TRUE(SameImage(frame.raw_dn, source.image(1)));
-  EXPECT_EQ(Stat(camera->statistics(), "timeouts"), 0);
+  const auto stats = camera->statistics();
+  EXPECT_EQ(Stat(stats, "timeouts"), 0);
+  EXPECT_EQ(StatOrZero(stats, "rearms"), 0);
+  EXPECT_EQ(StatOrZero(stats, "control_regained"), 0);
+  EXPECT_TRUE(fake->ControlHeld());
+}
+
+// A frame that arrives after its capture gave up on it (the camera stalled longer than the
+// frame timeout): the capture times out, re-arms and triggers again, and the late frame is
+// never delivered as the answer to a later trigger. The fake serves GVCP and GVSP from one
+// thread, so while its frame source stalls, the re-arm's commands wait too (Aravis resends
+// them), as with a camera busy with a long readout.
+TEST(AravisFakeCamera, LateFrameIsNeverTakenForALaterTrigger) {
+  PatternSource source(65535);
+  AravisFakeFrameSource pattern = source.callback();
+  AravisFakeFrameSource stalling = [&pattern](const AravisFakeFrameRequest& request, Image* raw_dn) {
+    if (request.index == 1) std::this_thread::sleep_for(std::chrono::milliseconds(800));
+    return pattern(request, raw_dn);
+  };
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), stalling, &fake).ok());
+  AravisCameraOptions options = CameraOptions(*fake);
+  options.frame_timeout_s = 0.3;
+  std::unique_ptr<AravisCamera> camera;
+  ASSERT_TRUE(OpenAravisCamera(options, &camera).ok());
+  CapturedFrame frame;
+  ASSERT_TRUE(camera->Capture(&frame).ok());
+  ASSERT_TRUE(SameImage(frame.raw_dn, source.image(0)));
+
+  // The stalled trigger: its frame (index 1) comes late; the re-armed trigger's frame (index 2)
+  // follows. Either answers this capture (both were taken after it was asked for).
+  Status status = camera->Capture(&frame);
+  ASSERT_TRUE(status.ok()) << status.message();
+  auto stats = camera->statistics();
+  EXPECT_EQ(Stat(stats, "timeouts"), 1);
+  EXPECT_EQ(Stat(stats, "rearms"), 1);
+  ASSERT_GE(source.count(), 2u);
+  const bool late_frame = SameImage(frame.raw_dn, source.image(1));
+  const bool retriggered = source.count() >= 3 && SameImage(frame.raw_dn, source.image(2));
+  EXPECT_TRUE(late_frame || retriggered) << "the re-armed capture returned neither of its triggers' frames";
+
+  // The next capture gets the frame of its own trigger, the newest served, never the one left over.
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  status = camera->Capture(&frame);
+  ASSERT_TRUE(status.ok()) << status.message();
+  ASSERT_GE(source.count(), 3u);
+  EXPECT_TRUE(SameImage(frame.raw_dn, source.image(source.count() - 1)))
+      << "served " << source.count() << " frames; the capture did not return the last";
+  stats = camera->statistics();
+  EXPECT_GE(Stat(stats, "stale_buffers_dropped"), 1);
+  EXPECT_EQ(Stat(stats, "timeouts"), 1);
 }
 
 // The camera drops our control channel during an idle gap (heartbeat lost, camera reset):
@@ -577,6 +638,78 @@ TEST(AravisFakeCamera, ControlLostDuringAnIdleGapIsRegainedByTheNextCapture) {
   // And the camera keeps working afterwards.
   ASSERT_TRUE(camera->Capture(&frame).ok());
   EXPECT_TRUE(SameImage(frame.raw_dn, source.image(2)));
+}
+
+// The camera goes away mid-session (cable pulled, power lost): the fake is destroyed between
+// two frames of an acquisition run. Every GVCP command then goes unanswered; the capture and its
+// retry fail naming the camera, and the manifest says which device failed, keeps the frames
+// taken before, records the failed attempts and the stream statistics.
+TEST(AravisFakeCamera, CameraLostMidSessionLeavesAManifestThatNamesIt) {
+  PatternSource source(65535);
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), source.callback(), &fake).ok());
+  AravisCameraOptions options = CameraOptions(*fake);
+  options.frame_timeout_s = 0.3;
+  std::unique_ptr<AravisCamera> camera;
+  ASSERT_TRUE(OpenAravisCamera(options, &camera).ok());
+
+  TempDir dir;
+  Session header;
+  header.name = "camera_lost";
+  header.kind = "test";
+  header.rig.cameras = {camera->info()};
+  header.rig.sample.region_min_m = Eigen::Vector2d(-1e-3, -1e-3);
+  header.rig.sample.region_max_m = Eigen::Vector2d(1e-3, 1e-3);
+  header.rig.sample.pixel_pitch_m = 1e-4;
+  AcquisitionRunOptions run;
+  run.session_dir = dir / "s";
+  run.plan = "test frames=6";
+  run.planned_frames = 6;
+  run.camera_name = "aravis:" + fake->address();
+  constexpr int kFramesBeforeLoss = 3;
+  const SessionScript script = [&](Camera* recording, SessionWriter* writer) {
+    for (int i = 0; i < 6; ++i) {
+      if (i == kFramesBeforeLoss) fake.reset();  // Unplugged.
+      FrameRecord templ;
+      templ.camera_id = recording->info().id;
+      templ.kind = "reference";
+      templ.sample_state = "clean";
+      THINSLAB_RETURN_IF_ERROR(CaptureWithRetries(recording, templ, /*max_retries=*/1, writer));
+    }
+    return Status::Ok();
+  };
+  AcquisitionResult result;
+  const Status status = RunAcquisition(run, header, camera.get(), script, &result);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("aravis camera 127.0.0.1"), std::string::npos) << status.message();
+  EXPECT_EQ(result.state, "failed");
+
+  Session session;
+  const Status read = ReadSession(dir / "s", &session);
+  ASSERT_TRUE(read.ok()) << read.message();
+  EXPECT_EQ(session.acquisition.state, "failed");
+  ASSERT_FALSE(session.acquisition.events.empty());
+  const AcquisitionEvent& last = session.acquisition.events.back();
+  EXPECT_EQ(last.event, "failed");
+  EXPECT_EQ(last.device, "camera 'cam0' (aravis:127.0.0.1)");
+  EXPECT_NE(last.message.find("aravis camera 127.0.0.1"), std::string::npos) << last.message;
+  EXPECT_NE(last.message.find("does not answer"), std::string::npos) << last.message;
+  // The frames before the loss are on disk as served; then the two attempts at the next frame.
+  ASSERT_EQ(session.frames.size(), static_cast<size_t>(kFramesBeforeLoss + 2));
+  for (int i = 0; i < kFramesBeforeLoss; ++i) {
+    const FrameRecord& f = session.frames[i];
+    ASSERT_EQ(f.status, FrameStatus::kOk) << f.error;
+    Image loaded;
+    ASSERT_TRUE(LoadFrame(dir / "s", session, f, &loaded).ok());
+    EXPECT_TRUE(SameImage(loaded, source.image(i))) << "frame " << i;
+  }
+  for (size_t i = kFramesBeforeLoss; i < session.frames.size(); ++i) {
+    EXPECT_EQ(session.frames[i].status, FrameStatus::kFailed);
+    EXPECT_NE(session.frames[i].error.find("aravis camera 127.0.0.1"), std::string::npos) << session.frames[i].error;
+  }
+  const auto& stats = session.rig.cameras[0].stream_statistics;
+  EXPECT_EQ(Stat(stats, "completed_buffers"), kFramesBeforeLoss);
+  EXPECT_EQ(Stat(stats, "frames_captured"), kFramesBeforeLoss);
 }
 
 TEST(AravisCamera, UnreachableAddressFailsFastNamingIt) {

@@ -528,9 +528,20 @@ TEST_F(CliAcquireTest, AbsentUsbLaserIsNamed) {
 }
 
 TEST_F(CliAcquireTest, DisplayIndexOutOfRangeIsNamed) {
-  // With or without an X server (no $DISPLAY), the error names the display index.
-  ExpectDeviceError("acquire dot-scan --display 99 " + *dir_ / "disp", {"display 99"}, *dir_ / "disp");
+  // Under a private X server with one screen, so the window code reaches its range check.
+  XvfbServer xvfb;
+  std::string error;
+  ASSERT_TRUE(xvfb.Start(160, 120, &error)) << error;
+  const char* old_display = std::getenv("DISPLAY");
+  const std::string saved_display = old_display ? old_display : "";
+  setenv("DISPLAY", xvfb.display().c_str(), 1);
+  ExpectDeviceError("acquire dot-scan --display 99 " + *dir_ / "disp", {"display 99", "out of range: 1 display"},
+                    *dir_ / "disp");
   ExpectDeviceError("acquire dot-scan --display -4 " + *dir_ / "disp", {"--display"}, *dir_ / "disp");
+  // Without an X server the error still names the display.
+  unsetenv("DISPLAY");
+  ExpectDeviceError("acquire dot-scan --display 99 " + *dir_ / "disp", {"display 99"}, *dir_ / "disp");
+  if (old_display) setenv("DISPLAY", saved_display.c_str(), 1);
 }
 
 // `--gamma-table` reaches the real window: under a private Xvfb, while `acquire bracket
