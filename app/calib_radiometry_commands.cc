@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <map>
@@ -94,6 +95,47 @@ std::vector<Group> GroupFrames(const Session& session, const CameraInfo& camera,
   return out;
 }
 
+// A bracket loaded for response recovery: one image per exposure (repeated frames averaged,
+// noise falls as 1/sqrt(n)), exposures saturated everywhere left out and named in `skipped`.
+struct Bracket {
+  std::map<double, std::pair<Image, int>> by_exposure;  // Averaged image, frame count.
+  std::vector<ResponseFrame> frames;                    // Point into by_exposure.
+  std::vector<std::string> skipped;
+};
+
+Status LoadBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                   const Group& group, double saturation_dn, Bracket* bracket) {
+  bracket->by_exposure.clear();
+  bracket->frames.clear();
+  bracket->skipped.clear();
+  for (const FrameRecord* f : group.frames) {
+    Image image;
+    THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *f, &image));
+    auto it = bracket->by_exposure.find(f->exposure_time_us);
+    if (it == bracket->by_exposure.end()) {
+      bracket->by_exposure.emplace(f->exposure_time_us, std::make_pair(std::move(image), 1));
+    } else {
+      for (size_t i = 0; i < image.data().size(); ++i) it->second.first.data()[i] += image.data()[i];
+      ++it->second.second;
+    }
+  }
+  for (auto& [t, entry] : bracket->by_exposure) {
+    for (float& v : entry.first.data()) v /= static_cast<float>(entry.second);
+    std::ostringstream name;
+    name << group.name << " @ " << t << " us (" << entry.second << " frame" << (entry.second > 1 ? "s" : "") << ")";
+    // An exposure saturated everywhere carries no information (RecoverResponse would refuse
+    // it): leave it out, say so, and let the remaining count decide.
+    const bool all_saturated = std::all_of(entry.first.data().begin(), entry.first.data().end(),
+                                           [&](float z) { return z >= saturation_dn - 0.5; });
+    if (all_saturated) {
+      bracket->skipped.push_back(name.str());
+      continue;
+    }
+    bracket->frames.push_back({&entry.first, t, camera.bit_depth, name.str()});
+  }
+  return Status::Ok();
+}
+
 void AddProvenance(Image* image, const std::string& session_dir, const std::string& options_ini) {
   image->attributes()["format_version"] = "1.0";
   image->attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
@@ -154,39 +196,49 @@ int RunCalibResponse(int argc, char** argv) {
                               (kind.empty() ? std::string() : " of kind '" + kind + "'") + " for camera '" +
                               camera->id + "'"));
   }
-  const Group& group = *std::max_element(groups.begin(), groups.end(), [](const Group& a, const Group& b) {
-    return std::make_pair(a.exposures.size(), a.frames.size()) < std::make_pair(b.exposures.size(), b.frames.size());
-  });
-  // One image per exposure: repeated frames at an exposure are averaged (noise falls as 1/sqrt(n)).
-  std::map<double, std::pair<Image, int>> by_exposure;
-  for (const FrameRecord* f : group.frames) {
-    Image image;
-    status = LoadFrame(session_dir, session, *f, &image);
-    if (!status.ok()) return Fail(status);
-    auto it = by_exposure.find(f->exposure_time_us);
-    if (it == by_exposure.end()) {
-      by_exposure.emplace(f->exposure_time_us, std::make_pair(std::move(image), 1));
-    } else {
-      for (size_t i = 0; i < image.data().size(); ++i) it->second.first.data()[i] += image.data()[i];
-      ++it->second.second;
-    }
-  }
   options.saturation_dn = camera->saturation_dn - camera->black_level_dn;
-  std::vector<ResponseFrame> frames;
-  for (auto& [t, entry] : by_exposure) {
-    for (float& v : entry.first.data()) v /= static_cast<float>(entry.second);
-    std::ostringstream name;
-    name << group.name << " @ " << t << " us (" << entry.second << " frame" << (entry.second > 1 ? "s" : "") << ")";
-    // An exposure saturated everywhere carries no information (RecoverResponse would refuse
-    // it): leave it out, say so, and let the remaining count decide.
-    const bool all_saturated = std::all_of(entry.first.data().begin(), entry.first.data().end(),
-                                           [&](float z) { return z >= options.saturation_dn - 0.5; });
-    if (all_saturated) {
-      std::cout << "skipping " << name.str() << ": every pixel is saturated\n";
-      continue;
-    }
-    frames.push_back({&entry.first, t, camera->bit_depth, name.str()});
+  // Brackets with the most exposures are the candidates. Where several tie, the one whose
+  // values span the most of the DN range wins: a near-uniform scene (a flat or reference
+  // bracket) gives one cluster of values per exposure and leaves the curve between them to the
+  // smoothness term (docs/models/radiometric_calibration.md, "Known limits").
+  size_t most_exposures = 0;
+  for (const Group& g : groups) most_exposures = std::max(most_exposures, g.exposures.size());
+  std::vector<const Group*> candidates;
+  for (const Group& g : groups) {
+    if (g.exposures.size() == most_exposures) candidates.push_back(&g);
   }
+  std::vector<BracketCandidate> scored;
+  Bracket bracket;
+  for (const Group* g : candidates) {
+    Bracket loaded;
+    status = LoadBracket(session_dir, session, *camera, *g, options.saturation_dn, &loaded);
+    if (!status.ok()) return Fail(status);
+    scored.push_back({g->name, static_cast<int>(g->exposures.size()), static_cast<int>(g->frames.size()),
+                      BracketDnCoverage(loaded.frames, options.saturation_dn)});
+    // Keep only the best so far in memory (ChooseResponseBracket over the prefix).
+    if (ChooseResponseBracket(scored) == static_cast<int>(scored.size()) - 1) bracket = std::move(loaded);
+  }
+  const int chosen = ChooseResponseBracket(scored);
+  const Group& group = *candidates[chosen];
+  const double coverage = scored[chosen].dn_coverage;
+  if (scored.size() > 1) {
+    std::cout << "bracket choice (" << most_exposures << " exposures each), share of the DN range covered:";
+    for (const BracketCandidate& c : scored) {
+      std::cout << " '" << c.name << "' " << static_cast<int>(std::lround(100 * c.dn_coverage)) << " %";
+    }
+    std::cout << "; using '" << group.name << "'\n";
+  }
+  for (const std::string& skipped : bracket.skipped) {
+    std::cout << "skipping " << skipped << ": every pixel is saturated\n";
+  }
+  if (coverage < kMinBracketDnCoverage) {
+    std::cout << "warning: bracket '" << group.name << "' covers only "
+              << static_cast<int>(std::lround(100 * coverage)) << " % of the DN range (below "
+              << static_cast<int>(std::lround(100 * kMinBracketDnCoverage))
+              << " %): the response is constrained by data only there and by smoothness elsewhere; use a bracket "
+                 "of a scene with a wide spread of radiance (--kind)\n";
+  }
+  const std::vector<ResponseFrame>& frames = bracket.frames;
   options.black_level_dn = camera->black_level_dn;
   CameraResponse response;
   ResponseRecoverySummary summary;

@@ -169,5 +169,64 @@ TEST(RadiometryCommands, ResponseHdrFlatOnSimulatedSession) {
   EXPECT_NE(RunCommand(RunCalibResponse, {session_dir}), 0);
 }
 
+// Two brackets with the same five exposures: a wide-range scene (kind "reference") and a nearly
+// uniform one (kind "flat", which sorts first). Without --kind, `calib response` must use the
+// wide one, whose values cover the DN range, and say why; asked for the flat one it warns.
+TEST(RadiometryCommands, ResponsePrefersTheBracketSpanningTheDnRange) {
+  TempDir dir;
+  const std::string session_dir = dir / "two_brackets";
+  BracketSimOptions wide;
+  wide.width_px = 160;
+  wide.height_px = 80;
+  wide.sensor.response = SimResponseCurve::kGamma;
+  wide.seed = 4;
+  ASSERT_TRUE(SynthesizeBracketSession(wide, session_dir).ok());
+  BracketSimOptions flat = wide;
+  flat.min_e_per_us = 1.0;
+  flat.max_e_per_us = 1.05;
+  flat.texture_amplitude = 0;
+  SimulatedBracket flat_frames;
+  ASSERT_TRUE(SimulateBracket(flat, &flat_frames).ok());
+  Session session;
+  ASSERT_TRUE(ReadSession(session_dir, &session).ok());
+  for (FrameRecord& f : session.frames) {
+    if (f.kind == "bracket") f.kind = "reference";
+  }
+  const FrameRecord first = session.frames[0];
+  ASSERT_TRUE(CreateDirectories(JoinPath(session_dir, "frames/cam0/flat")).ok());
+  for (size_t k = 0; k < flat_frames.frames.size(); ++k) {
+    FrameRecord f = first;
+    f.index = static_cast<int>(session.frames.size());
+    f.kind = "flat";
+    f.file = "frames/cam0/flat/" + std::to_string(k) + ".png";
+    f.exposure_time_us = flat_frames.frame_exposures_us[k];
+    ASSERT_TRUE(WriteRawFrame(JoinPath(session_dir, f.file), flat_frames.frames[k], wide.sensor.bit_depth).ok());
+    session.frames.push_back(f);
+  }
+  ASSERT_TRUE(WriteSession(session_dir, session).ok());
+
+  auto response_of = [&](std::vector<std::string> args, std::string* stdout_text) {
+    args.insert(args.begin(), session_dir);
+    testing::internal::CaptureStdout();
+    EXPECT_EQ(RunCommand(RunCalibResponse, args), 0);
+    *stdout_text = testing::internal::GetCapturedStdout();
+    CameraResponse r;
+    EXPECT_TRUE(ReadResponse(args.back(), &r).ok()) << args.back();
+    return r;
+  };
+  std::string automatic_out, reference_out, flat_out;
+  const CameraResponse automatic = response_of({"--out", dir / "auto.json"}, &automatic_out);
+  const CameraResponse reference =
+      response_of({"--kind", "reference", "--out", dir / "reference.json"}, &reference_out);
+  const CameraResponse from_flat = response_of({"--kind", "flat", "--out", dir / "flat.json"}, &flat_out);
+  std::cout << automatic_out << flat_out;
+  // The automatic choice is the reference bracket: the same curve, knot for knot.
+  EXPECT_EQ(automatic.linear_dn, reference.linear_dn);
+  EXPECT_NE(automatic.linear_dn, from_flat.linear_dn);
+  EXPECT_NE(automatic_out.find("using 'reference'"), std::string::npos) << automatic_out;
+  EXPECT_EQ(automatic_out.find("warning:"), std::string::npos) << automatic_out;
+  EXPECT_NE(flat_out.find("warning: bracket 'flat' covers only"), std::string::npos) << flat_out;
+}
+
 }  // namespace
 }  // namespace thinslab

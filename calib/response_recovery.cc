@@ -10,6 +10,7 @@
 #include <numeric>
 #include <random>
 #include <sstream>
+#include <tuple>
 
 #include "calib/hdr_merge.h"
 
@@ -51,7 +52,7 @@ std::string ResponseRecoverySummary::BriefReport() const {
   out << "response: " << num_samples << " pixels, " << num_rows << " equations, " << num_knots << " knots";
   if (iterations > 0) out << ", " << iterations << " iterations";
   out << ", rms log residual " << rms_log_residual << ", " << monotonicity_fixes << " monotonicity fixes, "
-      << solve_s << " s";
+      << solve_s << " s, values cover " << static_cast<int>(std::lround(100 * dn_coverage)) << " % of the DN range";
   return out.str();
 }
 
@@ -355,6 +356,40 @@ std::vector<size_t> SampleBracketPixels(const std::vector<ResponseFrame>& frames
   return chosen;
 }
 
+double BracketDnCoverage(const std::vector<ResponseFrame>& frames, double saturation_dn, int num_bins) {
+  if (frames.empty() || !(saturation_dn > 0) || num_bins < 1) return 0;
+  std::vector<size_t> counts(num_bins, 0);
+  size_t usable = 0;
+  for (const ResponseFrame& f : frames) {
+    if (f.dn == nullptr) continue;
+    for (float z : f.dn->data()) {
+      if (!Usable(z, saturation_dn)) continue;
+      ++counts[std::min(num_bins - 1, static_cast<int>(z / saturation_dn * num_bins))];
+      ++usable;
+    }
+  }
+  const double min_count = std::max(3.0, 1e-5 * static_cast<double>(usable));
+  const auto covered = std::count_if(counts.begin(), counts.end(), [&](size_t c) { return c >= min_count; });
+  return static_cast<double>(covered) / num_bins;
+}
+
+int ChooseResponseBracket(const std::vector<BracketCandidate>& candidates) {
+  int best = -1;
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    const BracketCandidate& c = candidates[k];
+    if (best < 0) {
+      best = static_cast<int>(k);
+      continue;
+    }
+    const BracketCandidate& b = candidates[best];
+    if (std::make_tuple(c.num_exposures, c.dn_coverage, c.num_frames) >
+        std::make_tuple(b.num_exposures, b.dn_coverage, b.num_frames)) {
+      best = static_cast<int>(k);
+    }
+  }
+  return best;
+}
+
 Status RecoverResponse(const std::vector<ResponseFrame>& frames, const ResponseRecoveryOptions& options,
                        CameraResponse* response, ResponseRecoverySummary* summary) {
   const auto start = std::chrono::steady_clock::now();
@@ -442,6 +477,7 @@ Status RecoverResponse(const std::vector<ResponseFrame>& frames, const ResponseR
   s.num_rows = static_cast<int>(rows.size());
   s.num_knots = num_knots;
   s.rms_log_residual = rms;
+  s.dn_coverage = BracketDnCoverage(frames, z_sat);
   s.solve_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   *response = r;
   if (summary != nullptr) *summary = s;

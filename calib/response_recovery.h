@@ -67,6 +67,7 @@ struct ResponseRecoverySummary {
   int iterations = 0;      // Robertson.
   int monotonicity_fixes = 0;  // Knots raised to keep L non-decreasing.
   double rms_log_residual = 0;
+  double dn_coverage = 0;  // BracketDnCoverage of the frames.
   double solve_s = 0;
   std::string BriefReport() const;
 };
@@ -74,6 +75,30 @@ struct ResponseRecoverySummary {
 // `frames` in order of strictly increasing exposure, all the same size and bit depth.
 Status RecoverResponse(const std::vector<ResponseFrame>& frames, const ResponseRecoveryOptions& options,
                        CameraResponse* response, ResponseRecoverySummary* summary);
+
+// Share of the DN range a bracket's values cover, in [0, 1]: [0, saturation_dn) is cut into
+// `num_bins` equal bins, and a bin counts when at least max(3, 1e-5 x the usable values) of the
+// usable values (0 < z < saturation_dn - 0.5, over all frames) fall in it (a few hot or noisy
+// pixels do not count). The response is constrained by data only where the bracket has values;
+// a near-uniform scene gives one cluster per exposure and leaves the rest of the curve to the
+// smoothness term (docs/models/radiometric_calibration.md, "Known limits").
+double BracketDnCoverage(const std::vector<ResponseFrame>& frames, double saturation_dn, int num_bins = 32);
+
+// Below this coverage `thinslab calib response` warns that the bracket constrains the curve poorly.
+inline constexpr double kMinBracketDnCoverage = 0.5;
+
+// A bracket `thinslab calib response` could use, for the automatic choice.
+struct BracketCandidate {
+  std::string name;
+  int num_exposures = 0;
+  int num_frames = 0;
+  double dn_coverage = 0;  // BracketDnCoverage.
+};
+
+// Index of the bracket to recover the response from: the most distinct exposures; among those,
+// the largest DN coverage (a near-uniform scene with as many exposures constrains the curve only
+// at a few levels); then the most frames; then the first. -1 if `candidates` is empty.
+int ChooseResponseBracket(const std::vector<BracketCandidate>& candidates);
 
 // The stratified, seeded pixel sample used by RecoverResponse (exposed for tests): indices of
 // pixels with at least one usable sample, spread over `num_strata` bands of irradiance.

@@ -22,14 +22,15 @@
 namespace thinslab {
 namespace {
 
-// A dust-like tau texture: Gaussian specks (sigma 1.2-3.5 px, peak 0.2-1.2) at random places,
-// wrapped around the borders so the source is stationary.
-Image DustTexture(int w, int h, int specks, uint64_t seed) {
+// A dust-like tau texture: Gaussian specks (sigma 1.2-3.5 px by default, peak 0.2-1.2) at
+// random places, wrapped around the borders so the source is stationary.
+Image DustTexture(int w, int h, int specks, uint64_t seed, double min_sigma_px = 1.2, double max_sigma_px = 3.5) {
   Image tau(w, h, {"tau"});
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> uni(0.0, 1.0);
   for (int i = 0; i < specks; ++i) {
-    const double cx = uni(rng) * w, cy = uni(rng) * h, sigma = 1.2 + 2.3 * uni(rng), peak = 0.2 + uni(rng);
+    const double cx = uni(rng) * w, cy = uni(rng) * h;
+    const double sigma = min_sigma_px + (max_sigma_px - min_sigma_px) * uni(rng), peak = 0.2 + uni(rng);
     const int r = static_cast<int>(std::ceil(4 * sigma));
     for (int dy = -r; dy <= r; ++dy) {
       for (int dx = -r; dx <= r; ++dx) {
@@ -151,6 +152,90 @@ TEST(QuiltingTest, MassMatchedSelectionKeepsTheDustUniformSelectionLoses) {
   EXPECT_LT(ratio[0], 0.95) << "uniform selection no longer loses dust: the comparison is void";
   EXPECT_NEAR(ratio[1], 1.0, 0.02);
   EXPECT_LT(ks[1], 0.6 * ks[0]);
+}
+
+// How far a texture's statistics are from the source's, over many runs: the mean and the
+// worst of each statistic (|mean tau ratio - 1| for the amount of dust).
+struct StatisticsSpread {
+  double ks_mean = 0, ks_worst = 0, mass_mean = 0, mass_worst = 0, acf_mean = 0, acf_worst = 0;
+  int runs = 0;
+  void Add(const Image& texture, const Image& source) {
+    const double ks = KsDistance(texture, source);
+    const double mass = std::abs(MeanValue(texture) / MeanValue(source) - 1);
+    const double acf = MaxAutocorrelationDeviation(texture, source, 16);
+    ks_mean = (ks_mean * runs + ks) / (runs + 1);
+    mass_mean = (mass_mean * runs + mass) / (runs + 1);
+    acf_mean = (acf_mean * runs + acf) / (runs + 1);
+    ks_worst = std::max(ks_worst, ks);
+    mass_worst = std::max(mass_worst, mass);
+    acf_worst = std::max(acf_worst, acf);
+    ++runs;
+  }
+  std::string ToString() const {
+    std::ostringstream o;
+    o << "KS " << ks_mean << " / " << ks_worst << ", |mean tau ratio - 1| " << mass_mean << " / " << mass_worst
+      << ", autocorrelation deviation " << acf_mean << " / " << acf_worst << " (mean / worst of " << runs << ")";
+    return o.str();
+  }
+};
+
+// The tolerance of each statistic is its own sampling spread. A 128 x 128 source holds ~110
+// specks, so its histogram, mean and autocorrelation are themselves noisy estimates of its
+// process's: a second, independent 256 x 256 sample of the very process that made the source
+// (DustTexture with 4x the specks, another seed) differs from it by autocorrelation deviation
+// 0.100 on average and 0.170 at worst (15 of 40 runs over 0.1), KS 0.032 / 0.080, mean tau
+// 6% / 14% (measured here). No synthesis can be asked to match the source more closely than
+// its own process does, so quilting passes when, over the same 40 runs, its mean and worst
+// distance are no larger than the independent samples' (measured raw: autocorrelation
+// 0.075 / 0.139, KS 0.024 / 0.062, mean tau 1.6% / 5.6%; remapped: 0.076 / 0.138,
+// 0.009 / 0.026, 0.0% / 0.0%), and the seams stay invisible on every run. The criterion
+// can fail: a sample of another process (specks twice as large) and quilting with 6 px patches,
+// smaller than the specks, both exceed it (autocorrelation 0.46 and 0.30 on average).
+TEST(QuiltingTest, QuiltingMatchesTheSourceAsCloselyAsAnIndependentSampleOfItsProcess) {
+  StatisticsSpread independent, raw, remapped, other_process, small_patches;
+  for (uint64_t source_seed = 1; source_seed <= 5; ++source_seed) {
+    const Image source = DustTexture(128, 128, 110, source_seed);
+    for (uint64_t seed = 0; seed < 8; ++seed) {
+      independent.Add(DustTexture(256, 256, 4 * 110, 1000 + 10 * source_seed + seed), source);
+      other_process.Add(DustTexture(256, 256, 110, 2000 + 10 * source_seed + seed, 2.4, 7.0), source);
+      for (const bool match_histogram : {false, true}) {
+        QuiltingOptions options;
+        options.seed = 10 + source_seed + 100 * seed;
+        options.match_histogram = match_histogram;
+        Image out, ids;
+        QuiltingSummary summary;
+        ASSERT_TRUE(QuiltTexture(source, 256, 256, options, &out, &ids, &summary).ok());
+        (match_histogram ? remapped : raw).Add(out, source);
+        EXPECT_LE(SeamRatio(out, ids).ratio, /*max_seam_ratio=*/1.2);
+      }
+      if (seed == 0) {
+        QuiltingOptions options;
+        options.seed = 10 + source_seed;
+        options.patch_px = 6;
+        options.overlap_px = 2;
+        options.match_histogram = false;
+        Image out, ids;
+        QuiltingSummary summary;
+        ASSERT_TRUE(QuiltTexture(source, 256, 256, options, &out, &ids, &summary).ok());
+        small_patches.Add(out, source);
+      }
+    }
+  }
+  std::cout << "independent samples: " << independent.ToString() << "\nquilting, raw: " << raw.ToString()
+            << "\nquilting, remapped: " << remapped.ToString() << "\nanother process: " << other_process.ToString()
+            << "\n6 px patches: " << small_patches.ToString() << "\n";
+  auto within_spread = [&independent](const StatisticsSpread& s) {
+    return s.ks_mean <= independent.ks_mean && s.ks_worst <= independent.ks_worst &&
+           s.mass_mean <= independent.mass_mean && s.mass_worst <= independent.mass_worst &&
+           s.acf_mean <= independent.acf_mean && s.acf_worst <= independent.acf_worst;
+  };
+  EXPECT_TRUE(within_spread(raw)) << raw.ToString() << "\nagainst " << independent.ToString();
+  EXPECT_TRUE(within_spread(remapped)) << remapped.ToString() << "\nagainst " << independent.ToString();
+  // The negative controls.
+  EXPECT_GT(other_process.acf_mean, independent.acf_mean) << other_process.ToString();
+  EXPECT_FALSE(within_spread(other_process));
+  EXPECT_GT(small_patches.acf_mean, independent.acf_mean) << small_patches.ToString();
+  EXPECT_FALSE(within_spread(small_patches));
 }
 
 TEST(QuiltingTest, NaiveTilingFailsTheSeamMeasure) {

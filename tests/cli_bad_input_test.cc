@@ -260,8 +260,46 @@ TEST_F(LaserCliTest, BoardGeometryMissing) {
   ExpectPhaseFails(session, {"session.json", "rig.board"});
 }
 
-// thinslab fit dmf end to end through the CLI: outputs written, every map value finite; a
-// capture that is not a dot scan and an impossible option are refused with a message.
+// A written PNG: the file exists, has the PNG signature and is more than a header.
+void ExpectPng(const std::string& path) {
+  ASSERT_TRUE(fs::exists(path)) << path;
+  EXPECT_GT(fs::file_size(path), 1000u) << path;
+  std::ifstream in(path, std::ios::binary);
+  std::array<char, 8> signature{};
+  in.read(signature.data(), signature.size());
+  EXPECT_EQ(std::string(signature.data(), signature.size()), std::string("\x89PNG\r\n\x1a\n", 8)) << path;
+}
+
+// `thinslab fit dmf` on a capture it must refuse: non-zero exit, exactly one line "error: ..."
+// naming every expected piece (file, field), and no output folder, complete or partial.
+void ExpectDmfFitFails(const std::string& session, const std::vector<std::string>& expected_in_message) {
+  const RunResult result = RunThinslab("fit dmf " + session + " --pitch-mm 8");
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_EQ(CountLines(result.output), 1) << result.output;
+  EXPECT_EQ(result.output.rfind("error: ", 0), 0u) << result.output;
+  for (const auto& piece : expected_in_message) {
+    EXPECT_NE(result.output.find(piece), std::string::npos) << "'" << piece << "' not in: " << result.output;
+  }
+  EXPECT_FALSE(fs::exists(session + "/fit")) << "output left behind in " << session;
+}
+
+// A copy of a dot scan (without its fit outputs) whose manifest `edit` changes.
+template <typename Edit>
+std::string EditedDotScan(const std::string& scan, const std::string& target, const Edit& edit) {
+  fs::copy(scan, target, fs::copy_options::recursive);
+  fs::remove_all(target + "/fit");
+  std::ifstream in(target + "/session.json");
+  nlohmann::json j = nlohmann::json::parse(in);
+  in.close();
+  edit(j);
+  std::ofstream(target + "/session.json") << j.dump(1);
+  return target;
+}
+
+// thinslab fit dmf end to end through the CLI: outputs written (maps, NDF pictures), every map
+// value finite; bad captures (too few dots, dot positions missing, no all-dots frame, a
+// saturated all-dots bracket, a capture that is not a dot scan) and an impossible option are
+// refused with one line naming the file and field, leaving no output behind.
 TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   TempDir dir;
   const std::string scan = dir / "scan";
@@ -276,6 +314,19 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   Image maps;
   ASSERT_TRUE(ReadExr(scan + "/fit/dmf/maps.exr", &maps).ok());
   EXPECT_EQ(maps.num_channels(), 8);
+  // Pictures: the maps of k_s, rho_d and the Smith roughness, and (Dai Fig. 6) the NDFs at the
+  // default points (k/4 of the map, k = 1..3: ndf_<col>_<row>.png), and no other NDF picture.
+  for (const char* name : {"k_s", "rho_d", "smith_alpha"}) ExpectPng(scan + "/fit/dmf/" + name + "_falsecolor.png");
+  int ndf_pictures = 0;
+  for (int k = 1; k <= 3; ++k) {
+    ExpectPng(scan + "/fit/dmf/ndf_" + std::to_string(k * maps.width() / 4) + "_" +
+              std::to_string(k * maps.height() / 4) + ".png");
+  }
+  for (const auto& entry : fs::directory_iterator(scan + "/fit/dmf")) {
+    const std::string name = entry.path().filename().string();
+    ndf_pictures += name.rfind("ndf_", 0) == 0 && entry.path().extension() == ".png";
+  }
+  EXPECT_EQ(ndf_pictures, 3);
   EXPECT_GE(maps.ChannelIndex("measured_ndf_fraction"), 0);
   EXPECT_GE(maps.ChannelIndex("transmittance"), 0);
   for (float v : maps.data()) ASSERT_TRUE(std::isfinite(v));
@@ -320,6 +371,53 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   const RunResult missing = RunThinslab("fit dmf " + (dir / "nothing_here"));
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_NE(missing.output.find("nothing_here"), std::string::npos) << missing.output;
+
+  // Bad captures (Dai Sec. 4.1 needs a regular dot grid, each dot's position, and the dots
+  // located without the sample).
+  const std::string few = dir / "few_dots";
+  ASSERT_EQ(RunThinslab("sim dot-scan " + few + " --grid-nx 3 --grid-ny 3 --photons-k 20").exit_code, 0);
+  ExpectDmfFitFails(few, {few + "/session.json", "3 x 3 dots", "at least 4 x 4"});
+  const std::string no_dot_px = EditedDotScan(scan, dir / "no_dot_px", [](nlohmann::json& j) {
+    for (auto& f : j["frames"]) {
+      if (f["kind"] == "dot") f["light"].erase("dot_px");
+    }
+  });
+  ExpectDmfFitFails(no_dot_px, {no_dot_px + "/session.json", "frames/cam0/dot/", "light.dot_px"});
+  const std::string no_all_dots = EditedDotScan(scan, dir / "no_all_dots", [](nlohmann::json& j) {
+    nlohmann::json frames = nlohmann::json::array();
+    for (auto& f : j["frames"]) {
+      if (f["kind"] == "all_dots") continue;
+      f["index"] = frames.size();  // Indices stay contiguous (docs/format.md).
+      frames.push_back(f);
+    }
+    j["frames"] = frames;
+  });
+  ExpectDmfFitFails(no_all_dots, {no_all_dots + "/session.json", "'all_dots'", "sample_state 'none'"});
+  const std::string saturated = dir / "saturated";
+  ASSERT_EQ(RunThinslab("sim dot-scan " + saturated + " --grid-nx 6 --grid-ny 6 --photons-k 20 --dot-radiance 50")
+                .exit_code,
+            0);
+  ExpectDmfFitFails(saturated, {"frames/cam0/all_dots/", "saturated"});
+  // Not a dot scan: a shadow-map capture has no monitor, which the fit names (before looking
+  // for 'dot' frames).
+  const std::string shadow = dir / "shadow_maps";
+  ASSERT_EQ(RunThinslab("sim pattern " + dir / "pattern.exr" + " --width-px 40 --height-px 40").exit_code, 0);
+  ASSERT_EQ(RunThinslab("sim shadow-maps " + shadow + " --tau " + dir / "pattern.exr" +
+                        " --camera-width-px 320 --camera-height-px 240 --photons 20000 --frames 2 --dark-frames 1")
+                .exit_code,
+            0);
+  ExpectDmfFitFails(shadow, {shadow + "/session.json", "rig.monitor", "dot scan"});
+  // A capture with a monitor but no 'dot' frames (e.g. only its all-dots calibration frames).
+  const std::string only_all_dots = EditedDotScan(scan, dir / "only_all_dots", [](nlohmann::json& j) {
+    nlohmann::json frames = nlohmann::json::array();
+    for (auto& f : j["frames"]) {
+      if (f["kind"] != "all_dots") continue;
+      f["index"] = frames.size();
+      frames.push_back(f);
+    }
+    j["frames"] = frames;
+  });
+  ExpectDmfFitFails(only_all_dots, {only_all_dots + "/session.json", "kind 'dot'", "not a dot scan"});
 }
 
 }  // namespace

@@ -154,6 +154,81 @@ TEST(CliSynthTest, LayerWritesTheDocumentedFilesAndTheSeedFixesTheBytes) {
   EXPECT_EQ(layer_c.data(), layer.data());
 }
 
+// The whole loop of Gu Sec. 5.3 through the binary: a simulated shadow-map capture, `fit tau`,
+// `synth add-prototype` of the fitted map into a new library, `synth list`, `synth layer` from
+// that library, and `synth preview` of the layer, whose Fig. 8 contrasts reverse between the
+// daylight window (darker against the sky) and the night window (brighter).
+TEST(CliSynthTest, AFittedTauMapBecomesAPrototypeThatSynthesizesAndPreviews) {
+  TempDir dir;
+  ASSERT_EQ(RunThinslab("sim pattern " + dir / "pattern.exr" + " --width-px 40 --height-px 40").exit_code, 0);
+  RunResult result = RunThinslab("sim shadow-maps " + dir / "capture" + " --tau " + dir / "pattern.exr" +
+                                 " --camera-width-px 320 --camera-height-px 240 --photons 20000 --frames 2"
+                                 " --dark-frames 1");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  result = RunThinslab("fit tau " + dir / "capture");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  const std::string fit = dir / "capture/fit/tau";
+  const std::string library = dir / "library";
+  const std::string add = "synth add-prototype " + library + " --fit-tau " + fit + " --name measured_dust --category dust";
+  result = RunThinslab(add);
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find("added prototype measured_dust (dust, 40x40 px"), std::string::npos) << result.output;
+  // The prototype is the fitted map with the noise floor (0.02) cleaned to exactly 0.
+  Image fitted, prototype;
+  ASSERT_TRUE(ReadExr(fit + "/tau.exr", &fitted).ok());
+  ASSERT_TRUE(ReadExr(library + "/measured_dust/tau.exr", &prototype).ok());
+  ASSERT_EQ(prototype.width(), fitted.width());
+  ASSERT_EQ(prototype.height(), fitted.height());
+  const int fitted_tau = fitted.ChannelIndex("tau"), status = fitted.ChannelIndex("status");
+  ASSERT_GE(fitted_tau, 0);
+  ASSERT_GE(status, 0);
+  int compared = 0;
+  for (int y = 0; y < fitted.height(); ++y) {
+    for (int x = 0; x < fitted.width(); ++x) {
+      if (fitted.at(x, y, status) != 0) continue;
+      const float tau = fitted.at(x, y, fitted_tau);
+      EXPECT_FLOAT_EQ(prototype.at(x, y, 0), tau < 0.02f ? 0.0f : tau) << x << "," << y;
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, fitted.width() * fitted.height() / 2);
+  // Adding it again is refused unless --overwrite.
+  result = RunThinslab(add);
+  EXPECT_NE(result.exit_code, 0);
+  EXPECT_NE(result.output.find("already exists"), std::string::npos) << result.output;
+  result = RunThinslab("synth list " + library);
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_EQ(result.output.rfind("measured_dust  dust  40x40 px", 0), 0u) << result.output;
+
+  const std::string out = dir / "layer";
+  result = RunThinslab("synth layer " + out + " --library " + library +
+                       " --prototypes measured_dust --width 96 --height 64 --seed 3 --preview false");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  Image layer;
+  ASSERT_TRUE(ReadExr(out + "/layer.exr", &layer).ok());
+  EXPECT_EQ(layer.width(), 96);
+  EXPECT_EQ(layer.height(), 64);
+  EXPECT_EQ(layer.attributes()["prototypes"], "measured_dust");
+  EXPECT_FALSE(fs::exists(out + "/pane_preview.png")) << "--preview false";
+  result = RunThinslab("synth preview " + out + "/layer.exr --out " + dir / "pane.png --max-size-px 64");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_GT(PngSize(dir / "pane.png").first, 0u);
+  const auto panes = nlohmann::json::parse(Bytes(dir / "pane.json"), nullptr, false);
+  ASSERT_FALSE(panes.is_discarded());
+  ASSERT_EQ(panes["scenes"].size(), 3u);
+  ASSERT_EQ(panes["scenes"][0]["scene"], "daylight_window");
+  ASSERT_EQ(panes["scenes"][1]["scene"], "night_window");
+  // Measured 0.65 and 1.61 (dust: g 0.65, albedo 0.5, the category defaults).
+  EXPECT_LT(panes["scenes"][0]["contrast_bright_background"].get<double>(), 0.9);
+  EXPECT_GT(panes["scenes"][1]["contrast_bright_background"].get<double>(), 1.1);
+  // A layer file that is not a contamination layer is refused by name.
+  result = RunThinslab("synth preview " + fit + "/tau.exr --out " + dir / "bad.png");
+  EXPECT_NE(result.exit_code, 0);
+  EXPECT_EQ(CountLines(result.output), 1) << result.output;
+  EXPECT_NE(result.output.find(fit + "/tau.exr"), std::string::npos) << result.output;
+  EXPECT_FALSE(fs::exists(dir / "bad.png"));
+}
+
 TEST(CliSynthTest, BadInputFailsWithOneLineNamingTheOptionOrFileAndWritesNothing) {
   TempDir dir;
   const std::string out = dir / "out";

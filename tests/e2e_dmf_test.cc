@@ -102,6 +102,30 @@ class DmfEndToEnd : public ::testing::Test {
     return stats;
   }
 
+  // Median over the interior points of each region of Dai's Eq. 14 applied to the noiseless
+  // true R = rho_d + k_s rho (the photon-traced tables of the ground truth) at the same dots and
+  // training mask: what Eq. 14 itself returns, without noise or calibration errors. On rough
+  // regions without a diffuse term it is not 0: the lowest 3 x 3 mean above 5 % of the mean R
+  // lies in the lobe's tails.
+  static std::map<std::string, double> Eq14OnTrueR(const std::map<std::string, RegionStats>& stats) {
+    const SlabSample& sample = *result_->sample;
+    std::map<std::string, double> out;
+    for (const auto& [name, st] : stats) {
+      std::vector<double> rho_d;
+      for (int p : st.points) {
+        const Eigen::Vector3d x = slices_->PointPosition(p);
+        const int region = sample.RegionIndexAt(x.head<2>());
+        DmfSlice slice = slices_->Slice(p);
+        for (int q = 0; q < slices_->num_dots(); ++q) {
+          slice.value[q] = sample.Transmission(region, (slices_->dot_positions[q] - x).normalized());
+        }
+        rho_d.push_back(EstimateDiffuse(slice, slices_->dots_nx, slices_->dots_ny));
+      }
+      out[name] = Median(rho_d);
+    }
+    return out;
+  }
+
   static std::string* dir_;
   static SyntheticDotScanResult* result_;
   static DmfSliceSet* slices_;
@@ -131,18 +155,62 @@ TEST_F(DmfEndToEnd, UnclusteredFitRecoversRegions) {
   // regions from ground_truth/truth.json.
   std::vector<DmfTruthRegion> truth;
   ASSERT_TRUE(ReadDmfTruth(*dir_, &truth).ok());
+  const std::map<std::string, double> eq14_on_truth = Eq14OnTrueR(stats);
+  std::map<std::string, DmfRegionAccuracy> accuracy;
   for (const DmfRegionAccuracy& a : CompareDmfWithTruth(*slices_, maps, truth)) {
     EXPECT_EQ(a.fitted, static_cast<int>(stats.at(a.name).alpha.size())) << a.name;
     if (a.fitted > 0) {
       EXPECT_DOUBLE_EQ(a.median_alpha, Median(stats.at(a.name).alpha)) << a.name;
     }
+    std::printf("%-14s k_s %.3f (true %.2f), rho_d %.4f (true %.3f, Eq. 14 on the true R %.4f)\n", a.name.c_str(),
+                a.median_k_s, a.true_k_s, a.median_rho_d, a.true_rho_d, eq14_on_truth.at(a.name));
+    accuracy[a.name] = a;
   }
   // Dai Sec. 3: alpha near 1 for a rough top, near 0 for a rough bottom.
   for (const char* name : {"ggx_top", "beckmann_top", "ggx_aniso_top"}) EXPECT_GE(Median(stats.at(name).alpha), 0.8) << name;
   EXPECT_LE(Median(stats.at("ggx_bottom").alpha), 0.2);
-  // NDF against the true face NDF, and held-out in-lobe prediction.
-  for (const char* name : {"ggx_top", "ggx_bottom", "beckmann_top", "ggx_aniso_top"}) {
-    EXPECT_LT(Median(stats.at(name).ndf_error), 0.4) << name;
+  // NDF against the true face NDF, per region: measured median plus about 25-30 %
+  // (ggx_aniso_top, the worst: its wide 0.4 axis has tails beyond the dots, kept at the earlier
+  // bound 0.4, 16 % above measured).
+  const std::map<std::string, double> max_ndf_error = {
+      {"ggx_top", 0.38},        // Measured 0.298.
+      {"ggx_bottom", 0.35},     // Measured 0.271.
+      {"beckmann_top", 0.24},   // Measured 0.185.
+      {"ggx_aniso_top", 0.40},  // Measured 0.344.
+  };
+  for (const auto& [name, bound] : max_ndf_error) EXPECT_LT(Median(stats.at(name).ndf_error), bound) << name;
+  // Diffuse term (Eq. 14). Where the slab has one (rho_d 0.05 /sr; every dot sees it, so the
+  // minimum of Eq. 14 is that floor) it is recovered within 0.015 /sr (measured 0.0417; Eq. 14
+  // on the noiseless true R gives 0.0500: the minimum over noisy 3 x 3 means is biased low).
+  EXPECT_NEAR(accuracy.at("diffuse").median_rho_d, accuracy.at("diffuse").true_rho_d, 0.015);
+  // Without a diffuse term Eq. 14 does not give 0 but the lobe tails' level: measured
+  // 0.025-0.070 /sr (ggx_bottom the highest), under 1 % of the lobe peaks (6-11 /sr), as high as
+  // the diffuse region's true 0.05, so rho_d cannot tell a diffuse term of that size from tails.
+  // Asserted: below 0.09 /sr (measured max 0.0701), and within 0.006 /sr of Eq. 14 on the true R
+  // (measured differences 0.0009-0.0043, the largest beckmann_both), i.e. the floor is Eq. 14's,
+  // not noise or calibration.
+  for (const char* name :
+       {"ggx_top", "ggx_bottom", "ggx_both", "beckmann_top", "beckmann_both", "ggx_aniso_top", "ggx_mixed"}) {
+    ASSERT_EQ(accuracy.at(name).true_rho_d, 0) << name;
+    EXPECT_LT(accuracy.at(name).median_rho_d, 0.09) << name;
+    EXPECT_NEAR(accuracy.at(name).median_rho_d, eq14_on_truth.at(name), 0.006) << name;
+  }
+  // k_s (Eq. 13, the projected integral of the unnormalised D) where the virtual configuration
+  // of Dai Fig. 2 is the true slab (one rough face): within 0.7-1.3 x the true k_s (measured
+  // ratios below; docs/models/dual_microfacet_fit.md: 0.75-1.3). The light that the fitted lobe
+  // does not model (the halo of internal reflections, the Laplacian-extrapolated tails) is what
+  // moves it. Not asserted on the two-sided regions, where k_s absorbs the mismatch of the Eq. 11
+  // interpolation (measured 1.446 ggx_both, 1.273 beckmann_both, 0.816 ggx_mixed).
+  for (const char* name : {
+           "ggx_top",        // Measured k_s 0.811 (true 1).
+           "ggx_bottom",     // 0.815 (true 1).
+           "beckmann_top",   // 1.029 (true 1).
+           "ggx_aniso_top",  // 0.996 (true 1).
+           "diffuse",        // 0.731 (true 0.8): ratio 0.914.
+       }) {
+    const DmfRegionAccuracy& a = accuracy.at(name);
+    EXPECT_GE(a.median_k_s, 0.7 * a.true_k_s) << name;
+    EXPECT_LE(a.median_k_s, 1.3 * a.true_k_s) << name;
   }
   for (const char* name : {"ggx_top", "ggx_bottom", "ggx_both", "beckmann_top", "beckmann_both", "ggx_aniso_top",
                            "diffuse", "ggx_mixed"}) {
@@ -250,6 +318,42 @@ TEST_F(DmfEndToEnd, ClusteredFitStaysCloseToUnclustered) {
               unclustered_->timings.total_s);
   EXPECT_LT(maps.num_fitted, 0.15 * slices_->num_points());
   EXPECT_LT(Median(clustered), Median(unclustered) + 0.05);
+  const Image image = maps.ToImage();
+  for (float v : image.data()) ASSERT_TRUE(std::isfinite(v));
+}
+
+// The same at the defaults of DmfMapFitOptions (Dai's 1 % of the points, raised to
+// min_representatives = 64: here 64 of the 364 fittable points).
+TEST_F(DmfEndToEnd, ClusteredFitAtDefaultsStaysCloseToUnclustered) {
+  ASSERT_NE(unclustered_, nullptr) << "runs after UnclusteredFitRecoversRegions";
+  const DmfMapFitOptions options;
+  ASSERT_TRUE(options.cluster);
+  DmfMaps maps;
+  const Status s = FitDualMicrofacetMaps(*slices_, options, &maps);
+  ASSERT_TRUE(s.ok()) << s.message();
+  std::vector<double> clustered, unclustered;
+  for (int p = 0; p < slices_->num_points(); ++p) {
+    if (maps.fits[p].log_ndf.empty() || unclustered_->fits[p].log_ndf.empty()) continue;
+    const double c = DmfHeldOutError(*slices_, maps, p), u = DmfHeldOutError(*slices_, *unclustered_, p);
+    if (c < 0 || u < 0) continue;
+    clustered.push_back(c);
+    unclustered.push_back(u);
+  }
+  std::sort(clustered.begin(), clustered.end());
+  std::sort(unclustered.begin(), unclustered.end());
+  const auto quantile = [](const std::vector<double>& v, double f) { return v[static_cast<size_t>(f * (v.size() - 1))]; };
+  std::printf("clustered at defaults: %d representatives of %zu points, held-out median %.3f vs %.3f unclustered, "
+              "90th percentile %.3f vs %.3f, fit %.2f s vs %.2f s\n",
+              maps.num_fitted, clustered.size(), Median(clustered), Median(unclustered), quantile(clustered, 0.9),
+              quantile(unclustered, 0.9), maps.timings.total_s, unclustered_->timings.total_s);
+  EXPECT_EQ(maps.num_fitted, options.clustering.min_representatives);
+  // Eq. 20 interpolation from the 4 nearest representatives costs little accuracy: median
+  // held-out error within 1.15 x the unclustered one (measured 0.182 vs 0.170, 1.07 x), the
+  // 90th percentile within 1.3 x (measured 0.270 vs 0.233, 1.16 x). The median alone misses
+  // wrong weights at points whose nearest representatives share their material (uniform
+  // weights: median 1.14 x, 90th percentile 1.38 x); the tail catches them.
+  EXPECT_LE(Median(clustered), 1.15 * Median(unclustered));
+  EXPECT_LE(quantile(clustered, 0.9), 1.3 * quantile(unclustered, 0.9));
   const Image image = maps.ToImage();
   for (float v : image.data()) ASSERT_TRUE(std::isfinite(v));
 }
