@@ -15,6 +15,7 @@
 #include <set>
 #include <sstream>
 
+#include "app/calibration_options.h"
 #include "app/capture_options.h"
 #include "app/commands.h"
 #include "app/option_parser.h"
@@ -354,13 +355,7 @@ int RunCalibHdr(int argc, char** argv) {
                                  {"read_noise_dn", info.read_noise_dn},
                                  {"pixels_all_saturated", hdr.pixels_all_saturated},
                                  {"pixels_fallback", hdr.pixels_fallback},
-                                 {"exposure_check",
-                                  {{"reported_us", check.reported_us},
-                                   {"measured_over_reported", check.measured_over_reported},
-                                   {"pixels", check.pixels},
-                                   {"max_deviation", check.measured ? check.max_deviation : -1},
-                                   {"warning", check.Warning()},
-                                   {"merged_with", info.merged_with_measured_exposures ? "measured" : "reported"}}}});
+                                 {"exposure_check", ExposureCheckJson(check, info.merged_with_measured_exposures)}});
     std::cout << group.name << ": " << info.num_frames << " frames, " << info.num_exposures << " exposures, "
               << info.num_darks << " darks, " << hdr.pixels_all_saturated << " pixels saturated everywhere"
               << "; exposures checked against the frames: ";

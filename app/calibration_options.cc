@@ -28,4 +28,13 @@ nlohmann::json CalibrationSummaryJson(const SessionCalibration& calibration) {
   return j;
 }
 
+nlohmann::json ExposureCheckJson(const ExposureCheck& check, bool merged_with_measured_exposures) {
+  return {{"reported_us", check.reported_us},
+          {"measured_over_reported", check.measured_over_reported},
+          {"pixels", check.pixels},
+          {"max_deviation", check.measured ? check.max_deviation : -1},
+          {"warning", check.Warning()},
+          {"merged_with", merged_with_measured_exposures ? "measured" : "reported"}};
+}
+
 }  // namespace thinslab

@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calib/exposure_check.h"
 #include "calib/session_calibration.h"
 
 namespace thinslab {
@@ -17,5 +18,9 @@ void AddCalibrationOptions(OptionParser* parser, SessionCalibrationOptions* opti
 // {"rig": file or null, "intrinsics": bool, "pose": bool, "monitor": bool, "response": file or
 // null, "response_method": "linear" | "debevec" | "robertson"} (docs/format.md section 9).
 nlohmann::json CalibrationSummaryJson(const SessionCalibration& calibration);
+
+// The exposure check of an HDR merge (calib/exposure_check.h): {"reported_us", "measured_over_reported",
+// "pixels", "max_deviation" (-1 = not measured), "warning", "merged_with": "measured" | "reported"}.
+nlohmann::json ExposureCheckJson(const ExposureCheck& check, bool merged_with_measured_exposures);
 
 }  // namespace thinslab

@@ -59,6 +59,8 @@ struct DmfRun {
   std::string ndf_pixels;
   bool ladder = false;  // Issue #8 rungs per point (needs held-out dots).
   int ladder_tile = 4;  // Grid points per side of the tiles whose points decide together.
+  std::string ladder_criterion = "held-out";  // Or "bic".
+  bool ladder_apply = true;  // maps.exr and the atlas hold the chosen rung's model.
   bool allow_incomplete_capture = false;  // --allow-incomplete (app/capture_options.h).
   std::string options_ini;
 };
@@ -66,16 +68,20 @@ struct DmfRun {
 // Issue #8 model ladder: fitted at every fitted point (or at the representatives, whose choice
 // their cluster's points inherit from the highest-weight neighbour), decided per tile; points
 // without a resolvable lobe are the attenuator. ladder.exr channels: rung (0, 3, 4, 5; -1
-// none), held-out error of rungs 3, 4, 5 (-1 not scored), noise floor.
+// none), held-out error of rungs 3, 4, 5 (-1 not scored), noise floor. With `apply`, the maps of
+// points on rungs 3 and 4 are replaced by that rung's model (ReplaceWithLadderRung), so that
+// maps.exr and the NDF atlas hold what was chosen.
 struct LadderMaps {
   Image image;
   std::map<int, int> rung_counts;
   int evaluated = 0;
+  int replaced = 0;  // Points whose maps now hold rung 3 or 4.
   double parameters_saved = 0, seconds_saved = 0, seconds = 0;
 };
 
-Status RunLadder(const DmfSliceSet& slices, const DmfMaps& maps, const DmfMapFitOptions& fit, int tile,
-                 LadderMaps* out) {
+Status RunLadder(const DmfSliceSet& slices, DmfMaps* maps_out, const DmfMapFitOptions& fit, int tile,
+                 const std::string& criterion, bool apply, LadderMaps* out) {
+  const DmfMaps& maps = *maps_out;
   if (tile < 1) return Status::Error("--ladder-tile must be >= 1, got " + std::to_string(tile));
   if (std::none_of(slices.train.begin(), slices.train.end(), [](uint8_t t) { return t == 0; })) {
     return Status::Error("--ladder scores models on held-out dots: add --hold-out true");
@@ -83,6 +89,7 @@ Status RunLadder(const DmfSliceSet& slices, const DmfMaps& maps, const DmfMapFit
   const auto start = std::chrono::steady_clock::now();
   LadderOptions options;
   options.point = fit.point;
+  options.criterion = criterion == "bic" ? LadderCriterion::kBic : LadderCriterion::kHeldOut;
   const DmfNdfGrid grid(fit.point.ndf_resolution);
   std::vector<int> points;
   if (fit.cluster) {
@@ -95,7 +102,7 @@ Status RunLadder(const DmfSliceSet& slices, const DmfMaps& maps, const DmfMapFit
   std::vector<LadderResult> results(points.size());
   ParallelFor(static_cast<int>(points.size()), fit.num_threads,
               [&](int k) { results[k] = FitLadder(slices.Slice(points[k]), grid, options); });
-  out->image = Image(slices.width, slices.height, {"rung", "held_out_single_ggx", "held_out_dmf_analytic",
+  out->image = Image(slices.width, slices.height, {"rung", "held_out_single_interface", "held_out_dmf_analytic",
                                                    "held_out_dmf_tabulated", "noise_floor"}, -1.0f);
   // Pixel clusters of the ladder: tiles of tile x tile grid points, whose evaluated points pool
   // their held-out dots (ChooseLadderRung).
@@ -104,12 +111,14 @@ Status RunLadder(const DmfSliceSet& slices, const DmfMaps& maps, const DmfMapFit
   for (size_t k = 0; k < points.size(); ++k) tiles[tile_of(points[k])].push_back(&results[k]);
   std::map<int, int> rung_of_tile;
   for (const auto& [t, group] : tiles) {
-    const int k = ChooseLadderRung(group, options.significance_sigmas);
+    const int k = ChooseLadderRung(group, options.significance_sigmas, options.criterion);
     const bool all_specular = std::all_of(group.begin(), group.end(), [](const LadderResult* r) { return r->specular; });
     rung_of_tile[t] = all_specular ? 0 : k >= 0 ? kLadderRungIds[k] : -1;
   }
   std::vector<int> rung_of_point(slices.num_points(), -1);
+  std::vector<int> source_of_point(slices.num_points(), -1);  // Index into `results` (own or representative's).
   for (size_t k = 0; k < points.size(); ++k) {
+    source_of_point[points[k]] = static_cast<int>(k);
     const LadderResult& r = results[k];
     const int p = points[k];
     rung_of_point[p] = r.specular ? 0 : rung_of_tile[tile_of(p)];
@@ -136,8 +145,30 @@ Status RunLadder(const DmfSliceSet& slices, const DmfMaps& maps, const DmfMapFit
           best = c.neighbors[idx];
         }
       }
-      if (best >= 0) rung_of_point[p] = rung_of_point[c.representatives[best]];
+      if (best >= 0) {
+        rung_of_point[p] = rung_of_point[c.representatives[best]];
+        source_of_point[p] = best;  // `points` are the representatives in order.
+      }
     }
+  }
+  if (apply) {
+    // The evaluated points first (their own rung fits), then the points that inherit a
+    // representative's choice take its replaced model with their own k_s.
+    std::vector<uint8_t> replaced(slices.num_points(), 0);
+    auto rung_index = [&](int p) { return rung_of_point[p] == 3 ? 0 : rung_of_point[p] == 4 ? 1 : -1; };
+    ParallelFor(static_cast<int>(points.size()), fit.num_threads, [&](int k) {
+      const int p = points[k];
+      if (rung_index(p) < 0 || maps.fits[p].log_ndf.empty()) return;
+      replaced[p] = ReplaceWithLadderRung(results[k], rung_index(p), slices.Slice(p), grid, fit.point,
+                                          &maps_out->fits[p]);
+    });
+    ParallelFor(slices.num_points(), fit.num_threads, [&](int p) {
+      const int src = source_of_point[p];
+      if (src < 0 || points[src] == p || rung_index(p) < 0 || maps.fits[p].log_ndf.empty()) return;
+      if (!replaced[points[src]]) return;
+      replaced[p] = AdoptLadderShape(maps.fits[points[src]], slices.Slice(p), grid, fit.point, &maps_out->fits[p]);
+    });
+    for (uint8_t r : replaced) out->replaced += r;
   }
   for (int p = 0; p < slices.num_points(); ++p) {
     const DmfStatus status = maps.fits[p].status;
@@ -159,6 +190,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   run.fit.clustering.fraction = run.cluster_fraction > 0 ? run.cluster_fraction : 1;
   std::string error;
   if (!run.fit.Check(&error)) return Status::Error("options: " + error);
+  if (run.ladder_criterion != "held-out" && run.ladder_criterion != "bic") {
+    return Status::Error("--ladder-criterion must be held-out or bic, got '" + run.ladder_criterion + "'");
+  }
   std::vector<std::pair<int, int>> pixels;
   THINSLAB_RETURN_IF_ERROR(ParsePixels(run.ndf_pixels, &pixels));
 
@@ -170,6 +204,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   }
   if (!processing.dark_level_warning.empty()) {
     std::cerr << "warning: " << session_dir << "/" << processing.dark_level_warning << "\n";
+  }
+  if (!processing.exposure_warning.empty()) {
+    std::cerr << "warning: " << session_dir << ": " << processing.exposure_warning << "\n";
   }
   DmfMaps maps;
   THINSLAB_RETURN_IF_ERROR(FitDualMicrofacetMaps(slices, run.fit, &maps));
@@ -184,7 +221,10 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   }
 
   LadderMaps ladder;
-  if (run.ladder) THINSLAB_RETURN_IF_ERROR(RunLadder(slices, maps, run.fit, run.ladder_tile, &ladder));
+  if (run.ladder) {
+    THINSLAB_RETURN_IF_ERROR(
+        RunLadder(slices, &maps, run.fit, run.ladder_tile, run.ladder_criterion, run.ladder_apply, &ladder));
+  }
 
   // Simulated captures carry their ground truth: compare per region.
   std::vector<DmfTruthRegion> truth;
@@ -203,6 +243,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   image.attributes()["grid_min_m"] = nlohmann::json({slices.grid_min_m.x(), slices.grid_min_m.y()}).dump();
   image.attributes()["pixel_pitch_m"] = nlohmann::json(slices.pitch_m).dump();
   image.attributes()["eta"] = nlohmann::json(run.fit.point.eta).dump();
+  // Which model each point's maps hold: rung 5 (tabulated) unless the ladder replaced it
+  // (ladder.exr channel rung).
+  image.attributes()["ladder_applied"] = run.ladder && run.ladder_apply ? "true" : "false";
   THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "maps.exr"), image));
 
   // NDF atlas: tiles in the orthographic projection of optics/dual_microfacet_btdf.h.
@@ -320,6 +363,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["dark_frame"] = {{"exposure_us", processing.dark_exposure_us},
                      {"median_fraction_of_range_at_sample_points", processing.dark_fraction_of_range},
                      {"warning", processing.dark_level_warning}};
+  j["exposure_check"] = ExposureCheckJson(processing.exposure_check, false);
   j["dot_geometry_source"] = processing.dot_geometry_source;
   j["calibration"] = CalibrationSummaryJson(processing.calibration);
   j["capture"] = CaptureSummaryJson(processing.capture);
@@ -343,6 +387,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     nlohmann::json counts_json;
     for (const auto& [rung, count] : ladder.rung_counts) counts_json[std::to_string(rung)] = count;
     j["ladder"] = {{"rung_counts", counts_json},
+                   {"criterion", run.ladder_criterion},
+                   {"applied_to_maps", run.ladder_apply},
+                   {"points_replaced", ladder.replaced},
                    {"points_evaluated", ladder.evaluated},
                    {"parameters_saved", ladder.parameters_saved},
                    {"fit_seconds_saved", ladder.seconds_saved},
@@ -361,11 +408,16 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
       << " s, model " << maps.timings.representative_fit_s << " s, interpolation " << maps.timings.interpolation_s
       << " s), writing " << write_s << " s; peak memory " << PeakResidentMemoryMiB() << " MiB\n";
   if (run.ladder) {
-    txt << "model ladder (issue #8; rung 0 attenuator, 3 single GGX, 4 analytic dual-microfacet, 5 tabulated):";
+    txt << "model ladder (issue #8; rung 0 attenuator, 3 single GGX or Beckmann interface, 4 analytic dual-microfacet, "
+           "5 tabulated; by "
+        << run.ladder_criterion << "):";
     for (const auto& [rung, count] : ladder.rung_counts) txt << " rung " << rung << ": " << count;
     txt << "; over " << ladder.evaluated << " evaluated points " << ladder.parameters_saved
         << " parameters and " << ladder.seconds_saved << " s of fitting saved against rung 5 (" << ladder.seconds
-        << " s)\n";
+        << " s); "
+        << (run.ladder_apply ? std::to_string(ladder.replaced) + " points' maps hold rung 3 or 4"
+                             : std::string("maps hold rung 5 everywhere (--ladder-apply false)"))
+        << "\n";
   }
   if (has_truth) {
     txt << "against ground truth (medians per region; NDF L2 on one-sided regions, held-out with --hold-out):\n";
@@ -418,6 +470,10 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddString("ndf-pixels", &run.ndf_pixels, "points for NDF pictures, '<col>,<row>;...'");
   parser.AddBool("ladder", &run.ladder, "also fit the issue #8 model ladder and pick per tile (needs --hold-out)");
   parser.AddInt("ladder-tile", &run.ladder_tile, "grid points per side of a ladder tile (its points decide together)");
+  parser.AddString("ladder-criterion", &run.ladder_criterion,
+                   "held-out (simplest rung within noise of the best on held-out dots) or bic (training data)");
+  parser.AddBool("ladder-apply", &run.ladder_apply,
+                 "maps.exr and the NDF atlas hold the chosen rung's model (false: the tabulated fit everywhere)");
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();

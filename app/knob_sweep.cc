@@ -170,10 +170,10 @@ Status SweepDmfKnobs(const DmfSliceSet& slices, const std::vector<DmfTruthRegion
   }
   if (options.model_rungs) {
     const DmfPointFitOptions& po = d.point;
-    SweepPoint single{"dmf", "model_rung", "3 single GGX"};
-    ScoreRung(slices, po, d.num_threads, [&](const DmfSlice& s) { return FitSingleInterfaceGgx(s, po); },
+    SweepPoint single{"dmf", "model_rung", "3 single interface"};
+    ScoreRung(slices, po, d.num_threads, [&](const DmfSlice& s) { return FitSingleInterface(s, po); },
               [&](const SingleInterfaceFit& f, const Eigen::Vector3d& i, const Eigen::Vector3d& o) {
-                return PredictSingleInterfaceGgx(f, po.eta, i, o);
+                return PredictSingleInterface(f, po.eta, i, o);
               },
               &single);
     single.parameters = 2 * slices.num_points();

@@ -83,8 +83,9 @@ Status WriteLobePlot(const std::string& path, const std::vector<LaserRing>& ring
   return WritePlotPng(path, panels, options);
 }
 
-std::string SummaryJson(const PhaseFitSummary& s, const SessionCalibration& calibration,
-                        const CaptureCompleteness& capture, const nlohmann::json& truth) {
+std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images, const CaptureCompleteness& capture,
+                        const nlohmann::json& truth) {
+  const SessionCalibration& calibration = images.calibration;
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
   j["format_version"] = "1.0";
@@ -116,6 +117,7 @@ std::string SummaryJson(const PhaseFitSummary& s, const SessionCalibration& cali
   j["categories"] = s.categories;
   j["calibration"] = CalibrationSummaryJson(calibration);
   j["capture"] = CaptureSummaryJson(capture);
+  j["exposure_check"] = ExposureCheckJson(images.lobe.exposure_check, false);
   j["flat_fielded"] = s.flat_fielded;
   j["clean_subtracted"] = s.clean_subtracted;
   j["timings_s"] = {{"fit", s.total_s}};
@@ -154,6 +156,8 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete_capture, &session, &capture));
   LaserLobeImages images;
   THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(session_dir, session, preparation, &images));
+  const std::string exposure_warning = images.lobe.exposure_check.Warning();
+  if (!exposure_warning.empty()) std::cerr << "warning: " << session_dir << ": laser frames: " << exposure_warning << "\n";
   THINSLAB_RETURN_IF_ERROR(FitPhase(options, images, rings, summary).WithContext(session_dir));
   // Model ladder rungs 0-2 (issue #8) on the same rings; 2 standard errors as in the dot-scan
   // ladder.
@@ -176,7 +180,7 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   }
   StagedDirectory out(out_dir);
   THINSLAB_RETURN_IF_ERROR(out.Init());
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images.calibration, capture, truth)));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images, capture, truth)));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "rings.csv"), RingsCsv(*rings)));
   if (has_ladder) {

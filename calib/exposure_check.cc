@@ -28,6 +28,30 @@ std::string ExposureCheck::Warning() const {
          "radiance is off by these factors where those frames dominate";
 }
 
+bool CombineExposureChecks(const ExposureCheck& other, ExposureCheck* combined) {
+  if (combined->reported_us.empty()) {
+    *combined = other;
+    return true;
+  }
+  if (combined->reported_us != other.reported_us) return false;
+  combined->max_deviation = 0;
+  combined->measured = false;
+  for (size_t k = 0; k < other.reported_us.size(); ++k) {
+    const bool take = other.measured_over_reported[k] > 0 &&
+                      (combined->measured_over_reported[k] < 0 || other.pixels[k] > combined->pixels[k]);
+    if (take) {
+      combined->measured_over_reported[k] = other.measured_over_reported[k];
+      combined->pixels[k] = other.pixels[k];
+    }
+    // The longest exposure is the reference (factor 1, no pixels compared): not a measurement.
+    if (k + 1 < other.reported_us.size() && combined->measured_over_reported[k] > 0) {
+      combined->measured = true;
+      combined->max_deviation = std::max(combined->max_deviation, std::abs(combined->measured_over_reported[k] - 1));
+    }
+  }
+  return true;
+}
+
 Status CheckBracketExposures(const std::vector<HdrFrame>& frames, const HdrMergeOptions& options, ExposureCheck* check) {
   *check = ExposureCheck();
   std::string error;
@@ -78,10 +102,17 @@ Status CheckBracketExposures(const std::vector<HdrFrame>& frames, const HdrMerge
   double scale_b = 1.0;  // measured / reported of the longer exposure of the pair.
   for (size_t a = m - 1; a-- > 0;) {
     const size_t b = a + 1;
+    // Pixels are chosen by the longer frame's signal (expected above min_signal in the shorter
+    // one), not by the shorter frame's own: choosing by the noisy x_a keeps the pixels whose
+    // noise lifted them over the threshold and biases the median of x_b / x_a low (1-1.5 % on the
+    // steep laser lobe, where many pixels sit near the threshold); x_b's noise is smaller by
+    // sqrt(t_b / t_a) and independent of x_a.
+    const double ratio_reported = check->reported_us[b] / check->reported_us[a];
     std::vector<double> ratios;
     for (size_t i = 0; i < n; ++i) {
       const double xa = levels[a].signal[i], xb = levels[b].signal[i];
-      if (levels[a].near_saturation[i] || levels[b].near_saturation[i] || !(xa > min_signal)) continue;
+      if (levels[a].near_saturation[i] || levels[b].near_saturation[i] || !(xb > min_signal * ratio_reported)) continue;
+      if (!(xa > 0)) continue;
       ratios.push_back(xb / xa);
     }
     check->pixels[a] = static_cast<int>(ratios.size());

@@ -6,9 +6,11 @@
 // steps in the merged radiance at the pixels where the weight moves from one frame to the next.
 //
 // Measured from the bracket itself: for each pair of neighbouring exposures t_a < t_b, the
-// median over pixels well exposed in both (linearised and dark-subtracted signal above
-// kExposureCheckMinSignalSigmas read-noise sigmas and 2 % of full scale in frame a, below 90 % of
-// saturation in frame b) of x_b / x_a estimates t_b^eff / t_a^eff. Chained down from the longest
+// median over pixels well exposed in both (linearised and dark-subtracted signal of frame b
+// above t_b / t_a times kExposureCheckMinSignalSigmas read-noise sigmas and 2 % of full scale,
+// so that frame a is expected above those; below 90 % of saturation in both) of x_b / x_a
+// estimates t_b^eff / t_a^eff. The pixels are chosen on frame b, not on frame a's own noisier
+// signal, which would keep the pixels its noise lifted over the threshold and bias the ratio. Chained down from the longest
 // exposure (taken as right: a fixed offset matters least there), it gives each exposure's
 // measured / reported ratio.
 #pragma once
@@ -40,6 +42,11 @@ struct ExposureCheck {
   // exposures and their measured/reported ratios.
   std::string Warning() const;
 };
+
+// Brackets of the same reported exposures (the dots of a scan): per exposure, the measured factor
+// of whichever check compared more pixels for it. `combined` empty takes `other`; a check of other
+// exposures is refused (false, `combined` unchanged).
+bool CombineExposureChecks(const ExposureCheck& other, ExposureCheck* combined);
 
 // `frames` and `options` as for MergeExposureBracket (response, saturation, read noise, darks).
 // Frames of equal exposure are averaged. Errors as MergeExposureBracket's frame checks.

@@ -272,6 +272,29 @@ ExposureCheck CheckExposures(const NonlinearBracket& b, const std::vector<double
   return check;
 }
 
+// Dots of one scan share a bracket; each lobe measures the exposures it exposes well. Per
+// exposure the factor from more pixels wins, unmeasured (-1) ones are filled from the other
+// check, and a bracket of other exposures is refused.
+TEST(ExposureCheck, ChecksOfOneBracketCombinePerExposure) {
+  ExposureCheck a, b, combined;
+  a.reported_us = b.reported_us = {10, 100, 1000};
+  a.measured_over_reported = {-1, 1.02, 1};
+  a.pixels = {20, 500, 0};
+  b.measured_over_reported = {1.30, 1.05, 1};
+  b.pixels = {150, 200, 0};
+  ASSERT_TRUE(CombineExposureChecks(a, &combined));
+  ASSERT_TRUE(CombineExposureChecks(b, &combined));
+  EXPECT_EQ(combined.measured_over_reported, (std::vector<double>{1.30, 1.02, 1}));
+  EXPECT_EQ(combined.pixels, (std::vector<int>{150, 500, 0}));
+  EXPECT_TRUE(combined.measured);
+  EXPECT_NEAR(combined.max_deviation, 0.30, 1e-12);
+  EXPECT_NE(combined.Warning().find("10 us reported"), std::string::npos) << combined.Warning();
+  ExposureCheck other = a;
+  other.reported_us = {10, 100, 2000};
+  EXPECT_FALSE(CombineExposureChecks(other, &combined));
+  EXPECT_EQ(combined.measured_over_reported[0], 1.30);
+}
+
 // A camera that applies what it reports passes, also with coarse (reported) exposure steps.
 TEST(ExposureCheck, ACameraThatAppliesWhatItReportsPasses) {
   for (double step_us : {1.0, 37.0}) {

@@ -42,6 +42,9 @@ Status MergeAndRectify(const std::string& session_dir, const Session& session, c
   merge_options.read_noise_dn = std::max(read_noise_dn, 0.5);
   merge_options.response = response;
   merge_options.black_level_dn = camera.black_level_dn;
+  if (exposures.size() >= 2) {
+    THINSLAB_RETURN_IF_ERROR(CheckBracketExposures(hdr_frames, merge_options, &out->exposure_check));
+  }
   HdrImage hdr;
   THINSLAB_RETURN_IF_ERROR(MergeExposureBracket(hdr_frames, merge_options, &hdr));
   out->radiance = rectifier.Rectify(hdr.radiance);

@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "calib/exposure_check.h"
 #include "calib/hdr_merge.h"
 #include "calib/session_calibration.h"
 #include "core/image.h"
@@ -27,6 +28,9 @@ struct BoardHdr {
   Image all_saturated;  // 1 where every exposure saturated.
   int num_frames = 0;
   int num_exposures = 0;  // Distinct exposure times.
+  // Does the camera apply the exposures it reports (calib/exposure_check.h)? Measured on the
+  // bracket itself when it has >= 2 exposures; ExposureCheck::Warning() says when not.
+  ExposureCheck exposure_check;
   bool empty() const { return num_frames == 0; }
 };
 

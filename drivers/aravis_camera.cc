@@ -433,6 +433,29 @@ int AravisCamera::DrainStaleBuffers() {
   return dropped;
 }
 
+uint64_t AravisCamera::UnwrapFrameId(uint64_t raw_id) {
+  if (have_frame_id_ && raw_id < last_raw_frame_id_ && last_raw_frame_id_ <= 0xffff) frame_id_offset_ += 0xffff;
+  last_raw_frame_id_ = raw_id;
+  have_frame_id_ = true;
+  return raw_id + frame_id_offset_;
+}
+
+ArvBuffer* AravisCamera::PopFrameOfThisTrigger(uint64_t timeout_us, int abandoned) {
+  const gint64 deadline = g_get_monotonic_time() + static_cast<gint64>(timeout_us);
+  while (true) {
+    const gint64 left = deadline - g_get_monotonic_time();
+    if (left <= 0) return nullptr;
+    ArvBuffer* buffer = arv_stream_timeout_pop_buffer(h_->stream, static_cast<guint64>(left));
+    if (buffer == nullptr || abandoned <= 0) return buffer;
+    // Frames arrive in id order: one just above the last taken belongs to a trigger given up
+    // on. A camera that restarted its ids (a reset) gives lower ones, which are taken.
+    const uint64_t id = UnwrapFrameId(arv_buffer_get_frame_id(buffer));
+    if (id <= last_taken_frame_id_ || id > last_taken_frame_id_ + static_cast<uint64_t>(abandoned)) return buffer;
+    arv_stream_push_buffer(h_->stream, buffer);
+    counters_["stale_buffers_dropped"] += 1;
+  }
+}
+
 Status AravisCamera::Rearm(const std::string& reason) {
   counters_["rearms"] += 1;
   GError* error = nullptr;
@@ -500,6 +523,8 @@ Status AravisCamera::SetExposure(double requested_us, double* applied_us) {
 
 Status AravisCamera::Capture(CapturedFrame* frame) {
   DrainStaleBuffers();
+  const int abandoned_before = abandoned_triggers_;
+  int triggers = 0;
   ArvGvDevice* gv = h_->gv_device();
   if (gv != nullptr && !arv_gv_device_is_controller(gv)) {
     THINSLAB_RETURN_IF_ERROR(Rearm("control of the camera was lost since the last frame"));
@@ -509,6 +534,7 @@ Status AravisCamera::Capture(CapturedFrame* frame) {
   ArvBuffer* buffer = nullptr;
   for (int attempt = 0; attempt < 2 && buffer == nullptr; ++attempt) {
     arv_camera_software_trigger(h_->camera, &error);
+    if (error == nullptr) ++triggers;
     if (error != nullptr) {
       const std::string message = "software trigger failed: " + TakeMessage(&error);
       if (attempt == 0) {
@@ -517,7 +543,7 @@ Status AravisCamera::Capture(CapturedFrame* frame) {
       }
       return Status::Error(device_name_ + ": " + message + " (also after re-arming)");
     }
-    buffer = arv_stream_timeout_pop_buffer(h_->stream, timeout_us);
+    buffer = PopFrameOfThisTrigger(timeout_us, abandoned_before);
     if (buffer == nullptr) {
       counters_["timeouts"] += 1;
       const std::string message = "no frame within " + Num(options_.frame_timeout_s) + " s of the software trigger";
@@ -525,6 +551,7 @@ Status AravisCamera::Capture(CapturedFrame* frame) {
         THINSLAB_RETURN_IF_ERROR(Rearm(message));
         continue;
       }
+      abandoned_triggers_ = abandoned_before + triggers;
       return Status::Error(device_name_ + ": " + message +
                            ", also after re-arming (retaking control and restarting acquisition); check the "
                            "cable, the firewall (GVSP is UDP from the camera) and the packet size (" +
@@ -538,12 +565,21 @@ Status AravisCamera::Capture(CapturedFrame* frame) {
     ~Requeue() { arv_stream_push_buffer(stream, buffer); }
   } requeue{h_->stream, buffer};
 
-  const uint64_t raw_id = arv_buffer_get_frame_id(buffer);
-  // GigE Vision 1.x block ids are 16 bits and skip 0: unwrap them into a counter.
-  if (have_frame_id_ && raw_id < last_raw_frame_id_ && last_raw_frame_id_ <= 0xffff) frame_id_offset_ += 0xffff;
-  last_raw_frame_id_ = raw_id;
-  have_frame_id_ = true;
-  const uint64_t frame_id = raw_id + frame_id_offset_;
+  const uint64_t frame_id = UnwrapFrameId(arv_buffer_get_frame_id(buffer));
+  // Within this capture the first frame after its (re-)trigger answers it. Triggers sent so far
+  // (earlier captures' abandoned ones and this capture's) whose frames are neither this one nor
+  // among the ids skipped or drained before it may still arrive: the next capture skips them.
+  // (When the camera never took a timed-out trigger, the next capture's own frame looks like its
+  // leftover: one wasted frame timeout and re-arm there, never a wrong frame.)
+  if (frame_id > last_taken_frame_id_) {
+    const uint64_t passed = frame_id - last_taken_frame_id_ - 1;  // Ids before this frame, not taken.
+    const int64_t outstanding = static_cast<int64_t>(abandoned_before) + triggers - 1 -
+                                static_cast<int64_t>(std::min<uint64_t>(passed, 1u << 20));
+    abandoned_triggers_ = static_cast<int>(std::max<int64_t>(0, outstanding));
+  } else {
+    abandoned_triggers_ = 0;  // The camera restarted its ids.
+  }
+  last_taken_frame_id_ = frame_id;
 
   const ArvBufferStatus status = arv_buffer_get_status(buffer);
   if (status != ARV_BUFFER_STATUS_SUCCESS) {

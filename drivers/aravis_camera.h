@@ -14,6 +14,9 @@
 
 #include "drivers/camera.h"
 
+// Aravis's own declaration (arvtypes.h), repeated so that this header needs no Aravis include.
+typedef struct _ArvBuffer ArvBuffer;
+
 namespace thinslab {
 
 struct AravisCameraOptions {
@@ -94,6 +97,12 @@ class AravisCamera : public Camera {
   Status StartStream();
   Status Rearm(const std::string& reason);
   int DrainStaleBuffers();
+  // GigE Vision 1.x block ids are 16 bits and skip 0: unwrapped into a counter.
+  uint64_t UnwrapFrameId(uint64_t raw_id);
+  // The next buffer within `timeout_us`, skipping (requeueing, counted as stale) frames of
+  // triggers that earlier captures gave up on: ids in (last_taken_frame_id_, last_taken_frame_id_
+  // + `abandoned`]. Such a frame may still be in flight when DrainStaleBuffers runs.
+  ArvBuffer* PopFrameOfThisTrigger(uint64_t timeout_us, int abandoned);
 
   AravisCameraOptions options_;
   std::unique_ptr<Handles> h_;
@@ -107,6 +116,8 @@ class AravisCamera : public Camera {
   uint64_t last_raw_frame_id_ = 0;
   uint64_t frame_id_offset_ = 0;
   bool have_frame_id_ = false;
+  uint64_t last_taken_frame_id_ = 0;  // Unwrapped id of the last frame a capture took.
+  int abandoned_triggers_ = 0;        // Triggers of earlier captures whose frames may still arrive.
   std::map<std::string, double> counters_;
 };
 

@@ -17,39 +17,6 @@ double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
-// ln k_s of point `slice` for a model shape (alpha, D, smith) borrowed from `shape`: the mean
-// log ratio of measurement to unit-scale prediction over the usable training dots.
-double FitLogScale(const DmfSlice& slice, const DmfPointFit& shape, const DmfNdfGrid& grid,
-                   const DmfPointFitOptions& options, int* used) {
-  DmfPointFit unit = shape;
-  unit.k_s = 1;
-  unit.rho_d = 0;
-  double sum = 0;
-  int n = 0;
-  for (int q : UsableTrainingDots(slice, options)) {
-    const double pred = PredictDualMicrofacet(unit, grid, options.eta, slice.i[q], slice.o);
-    if (!(pred > 0)) continue;
-    sum += std::log((slice.value[q] - slice.rho_d) / pred);
-    ++n;
-  }
-  *used = n;
-  return n > 0 ? sum / n : 0;
-}
-
-// RMS of the Eq. 15 log residuals over the usable training dots.
-double LogRmsResidual(const DmfSlice& slice, const DmfPointFit& fit, const DmfNdfGrid& grid,
-                      const DmfPointFitOptions& options) {
-  double sum = 0;
-  int n = 0;
-  for (int q : UsableTrainingDots(slice, options)) {
-    const double pred = PredictDualMicrofacet(fit, grid, options.eta, slice.i[q], slice.o) - fit.rho_d;
-    if (!(pred > 0)) continue;
-    sum += Sqr(std::log((slice.value[q] - slice.rho_d) / pred));
-    ++n;
-  }
-  return n > 0 ? std::sqrt(sum / n) : 0;
-}
-
 }  // namespace
 
 Eigen::Vector3d DmfSliceSet::PointPosition(int p) const {

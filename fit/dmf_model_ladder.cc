@@ -2,6 +2,7 @@
 #include "fit/dmf_model_ladder.h"
 
 #include "fit/ladder_choice.h"
+#include "fit/small_dense_solve.h"
 
 #include <ceres/ceres.h>
 
@@ -18,6 +19,7 @@ namespace {
 // The weight stays strictly inside (0, 1) where Eq. 11 is smooth.
 constexpr double kMinWeight = 1e-3, kMaxWeight = 1 - 1e-3;
 
+template <template <typename> class Distribution>
 struct AnalyticDmfResidual {
   Eigen::Vector3d i, o;
   double log_value, eta;
@@ -25,13 +27,36 @@ struct AnalyticDmfResidual {
   bool operator()(const T* log_alpha_ndf, const T* weight, const T* log_k, T* residual) const {
     using std::exp;
     using std::log;
-    const GgxDistributionT<T> ggx(exp(log_alpha_ndf[0]));
-    const DualMicrofacetBtdf<GgxDistributionT<T>> btdf(ggx, ggx, T(eta));
+    const Distribution<T> ndf(exp(log_alpha_ndf[0]));
+    const DualMicrofacetBtdf<Distribution<T>> btdf(ndf, ndf, T(eta));
     const T rho = btdf.Eval(i.cast<T>(), o.cast<T>(), weight[0]);
     residual[0] = rho > T(0) ? T(log_value) - log_k[0] - log(rho) : T(10.0);
     return true;
   }
 };
+
+// One family from one start of the weight: the final cost (1e300 when nothing was fitted).
+template <template <typename> class Distribution>
+double FitAnalyticOnce(const DmfSlice& slice, const std::vector<int>& used, double eta, double start,
+                       AnalyticDmfFit* fit) {
+  double log_alpha = std::log(0.2), weight = start, log_k = 0;
+  ceres::Problem problem;
+  using Residual = AnalyticDmfResidual<Distribution>;
+  for (int q : used) {
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Residual, 1, 1, 1, 1>(
+                                 new Residual{slice.i[q], slice.o, std::log(slice.value[q] - slice.rho_d), eta}),
+                             nullptr, &log_alpha, &weight, &log_k);
+  }
+  problem.SetParameterLowerBound(&log_alpha, 0, std::log(kMinMicrofacetAlpha));
+  problem.SetParameterUpperBound(&log_alpha, 0, std::log(kMaxMicrofacetAlpha));
+  problem.SetParameterLowerBound(&weight, 0, kMinWeight);
+  problem.SetParameterUpperBound(&weight, 0, kMaxWeight);
+  const double cost = SolveSmallDenseProblem(&problem, 50);
+  fit->alpha_ndf = std::exp(log_alpha);
+  fit->alpha = weight;
+  fit->k_s = std::exp(log_k);
+  return cost;
+}
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
@@ -45,31 +70,19 @@ AnalyticDmfFit FitAnalyticDualMicrofacet(const DmfSlice& slice, const DmfPointFi
   const std::vector<int> used = UsableTrainingDots(slice, options);
   if (static_cast<int>(used.size()) < options.min_measurements) return best;
   double best_cost = 1e300;
-  for (double start : {0.2, 0.5, 0.8}) {
-    double log_alpha = std::log(0.2), weight = start, log_k = 0;
-    ceres::Problem problem;
-    for (int q : used) {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<AnalyticDmfResidual, 1, 1, 1, 1>(new AnalyticDmfResidual{
-                                   slice.i[q], slice.o, std::log(slice.value[q] - slice.rho_d), options.eta}),
-                               nullptr, &log_alpha, &weight, &log_k);
-    }
-    problem.SetParameterLowerBound(&log_alpha, 0, std::log(kMinMicrofacetAlpha));
-    problem.SetParameterUpperBound(&log_alpha, 0, std::log(kMaxMicrofacetAlpha));
-    problem.SetParameterLowerBound(&weight, 0, kMinWeight);
-    problem.SetParameterUpperBound(&weight, 0, kMaxWeight);
-    ceres::Solver::Options solver;
-    solver.linear_solver_type = ceres::DENSE_QR;
-    solver.max_num_iterations = 50;
-    solver.logging_type = ceres::SILENT;
-    ceres::Solver::Summary summary;
-    ceres::Solve(solver, &problem, &summary);
-    if (summary.final_cost < best_cost) {
-      best_cost = summary.final_cost;
-      best.ok = true;
-      best.alpha_ndf = std::exp(log_alpha);
-      best.alpha = weight;
-      best.k_s = std::exp(log_k);
-      best.log_rms_residual = std::sqrt(2 * summary.final_cost / used.size());
+  for (MicrofacetFamily family : {MicrofacetFamily::kGgx, MicrofacetFamily::kBeckmann}) {
+    for (double start : {0.2, 0.5, 0.8}) {
+      AnalyticDmfFit fit = best;
+      fit.family = family;
+      const double cost = family == MicrofacetFamily::kGgx
+                              ? FitAnalyticOnce<GgxDistributionT>(slice, used, options.eta, start, &fit)
+                              : FitAnalyticOnce<BeckmannDistributionT>(slice, used, options.eta, start, &fit);
+      if (cost < best_cost) {
+        best_cost = cost;
+        best = fit;
+        best.ok = true;
+        best.log_rms_residual = std::sqrt(2 * cost / used.size());
+      }
     }
   }
   return best;
@@ -78,12 +91,16 @@ AnalyticDmfFit FitAnalyticDualMicrofacet(const DmfSlice& slice, const DmfPointFi
 double PredictAnalyticDualMicrofacet(const AnalyticDmfFit& fit, double eta, const Eigen::Vector3d& i,
                                      const Eigen::Vector3d& o) {
   if (!fit.ok) return fit.rho_d;
-  const GgxDistribution ggx(fit.alpha_ndf);
-  return fit.rho_d + fit.k_s * MakeDualMicrofacetBtdf(ggx, ggx, eta).Eval(i, o, fit.alpha);
+  if (fit.family == MicrofacetFamily::kBeckmann) {
+    const BeckmannDistribution ndf(fit.alpha_ndf);
+    return fit.rho_d + fit.k_s * MakeDualMicrofacetBtdf(ndf, ndf, eta).Eval(i, o, fit.alpha);
+  }
+  const GgxDistribution ndf(fit.alpha_ndf);
+  return fit.rho_d + fit.k_s * MakeDualMicrofacetBtdf(ndf, ndf, eta).Eval(i, o, fit.alpha);
 }
 
 const char* LadderRungName(int rung_index) {
-  static const char* const kNames[kNumLadderRungs] = {"single_ggx", "dual_microfacet_analytic",
+  static const char* const kNames[kNumLadderRungs] = {"single_interface", "dual_microfacet_analytic",
                                                       "dual_microfacet_tabulated"};
   return rung_index >= 0 && rung_index < kNumLadderRungs ? kNames[rung_index] : "none";
 }
@@ -97,7 +114,7 @@ LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const Ladd
     return r;
   }
   auto t = std::chrono::steady_clock::now();
-  r.single = FitSingleInterfaceGgx(slice, options.point);
+  r.single = FitSingleInterface(slice, options.point);
   r.seconds[0] = Seconds(t);
   t = std::chrono::steady_clock::now();
   r.analytic = FitAnalyticDualMicrofacet(slice, options.point);
@@ -109,7 +126,7 @@ LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const Ladd
 
   const bool fitted[kNumLadderRungs] = {r.single.ok, r.analytic.ok, !r.tabulated.log_ndf.empty()};
   auto predict = [&](int rung, int q) {
-    if (rung == 0) return PredictSingleInterfaceGgx(r.single, eta, slice.i[q], slice.o);
+    if (rung == 0) return PredictSingleInterface(r.single, eta, slice.i[q], slice.o);
     if (rung == 1) return PredictAnalyticDualMicrofacet(r.analytic, eta, slice.i[q], slice.o);
     return PredictDualMicrofacet(r.tabulated, grid, eta, slice.i[q], slice.o);
   };
@@ -154,13 +171,20 @@ LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const Ladd
       r.chosen_by_bic = k;
     }
   }
-  r.chosen = ChooseLadderRung({&r}, options.significance_sigmas);
+  r.chosen = ChooseLadderRung({&r}, options.significance_sigmas, options.criterion);
   return r;
 }
 
-int ChooseLadderRung(const std::vector<const LadderResult*>& group, double significance_sigmas) {
-  // Per-dot squared errors relative to their point's signal, pooled over the group.
+const char* LadderCriterionName(LadderCriterion criterion) {
+  return criterion == LadderCriterion::kBic ? "bic" : "held-out";
+}
+
+int ChooseLadderRung(const std::vector<const LadderResult*>& group, double significance_sigmas,
+                     LadderCriterion criterion) {
+  // Per-dot squared errors relative to their point's signal, pooled over the group; and the
+  // group's BIC per rung. A rung counts only where it was fitted and scored on every point.
   std::vector<std::vector<double>> pooled(kNumLadderRungs);
+  std::array<double, kNumLadderRungs> bic{{0, 0, 0}};
   std::array<bool, kNumLadderRungs> available{{true, true, true}};
   int points = 0;
   for (const LadderResult* r : group) {
@@ -168,14 +192,104 @@ int ChooseLadderRung(const std::vector<const LadderResult*>& group, double signi
     ++points;
     for (int k = 0; k < kNumLadderRungs; ++k) {
       if (r->squared_errors[k].empty()) available[k] = false;
+      bic[k] += r->bic[k];
       for (double e : r->squared_errors[k]) pooled[k].push_back(e / r->signal);
     }
   }
   if (points == 0) return -1;
+  if (criterion == LadderCriterion::kBic) {
+    int best = -1;
+    for (int k = 0; k < kNumLadderRungs; ++k) {
+      if (available[k] && (best < 0 || bic[k] < bic[best])) best = k;
+    }
+    return best;
+  }
   for (int k = 0; k < kNumLadderRungs; ++k) {
     if (!available[k]) pooled[k].clear();
   }
   return SimplestRungWithinNoise(pooled, significance_sigmas);
+}
+
+namespace {
+
+// ln D at the centres of the cells inside the disk; ln epsilon outside, as the tabulated fit has.
+template <typename Distribution>
+void SampleLogNdf(const Distribution& ndf, const DmfNdfGrid& grid, std::vector<double>* log_ndf) {
+  const int n = grid.n();
+  log_ndf->assign(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
+  for (int cell = 0; cell < grid.num_cells(); ++cell) {
+    if (!grid.InDisk(cell)) continue;
+    const double x = grid.CellCentre(cell % n), y = grid.CellCentre(cell / n);
+    const double d = ndf.D(Eigen::Vector3d(x, y, std::sqrt(std::max(0.0, 1 - x * x - y * y))));
+    (*log_ndf)[cell] = std::max(DmfNdfGrid::kLogEpsilon, std::log(std::max(d, 1e-300)));
+  }
+}
+
+}  // namespace
+
+namespace {
+
+// `out` holds a shape (alpha, log_ndf, smith_alpha): its k_s on this point's training dots, the
+// residual, the transmittance (`transmittance_per_k_s` of the refracted part when known, else
+// integrated) and the status.
+bool ScaleLadderShape(const DmfSlice& slice, const DmfNdfGrid& grid, const DmfPointFitOptions& options,
+                      double transmittance_per_k_s, DmfPointFit* out) {
+  int used = 0;
+  out->k_s = std::exp(FitLogScale(slice, *out, grid, options, &used));
+  if (used == 0) return false;
+  out->num_used = used;
+  out->log_rms_residual = LogRmsResidual(slice, *out, grid, options);
+  out->alpha_iterations = 0;
+  out->transmittance = transmittance_per_k_s >= 0 ? kPi * out->rho_d + out->k_s * transmittance_per_k_s
+                                                  : DirectionalTransmittance(*out, grid, options.eta, slice.o);
+  if (out->transmittance > options.max_transmittance || out->k_s > options.max_k_s) {
+    out->status = DmfStatus::kUnphysical;
+  } else if (out->status != DmfStatus::kInterpolated) {
+    out->status = DmfStatus::kOk;  // Not undersampled or unconverged: those describe the tabulated fit.
+  }
+  return true;
+}
+
+}  // namespace
+
+bool ReplaceWithLadderRung(const LadderResult& shape, int rung_index, const DmfSlice& slice, const DmfNdfGrid& grid,
+                           const DmfPointFitOptions& options, DmfPointFit* fit) {
+  DmfPointFit out = *fit;
+  MicrofacetFamily family = MicrofacetFamily::kGgx;
+  double roughness = 0;
+  if (rung_index == 0 && shape.single.ok) {
+    family = shape.single.family;
+    roughness = shape.single.alpha;
+    out.alpha = shape.single.rough_top ? 1 : 0;
+  } else if (rung_index == 1 && shape.analytic.ok) {
+    family = shape.analytic.family;
+    roughness = shape.analytic.alpha_ndf;
+    out.alpha = shape.analytic.alpha;
+  } else {
+    return false;
+  }
+  if (family == MicrofacetFamily::kBeckmann) {
+    SampleLogNdf(BeckmannDistribution(roughness), grid, &out.log_ndf);
+  } else {
+    SampleLogNdf(GgxDistribution(roughness), grid, &out.log_ndf);
+  }
+  out.smith_alpha = roughness;
+  if (!ScaleLadderShape(slice, grid, options, -1, &out)) return false;
+  *fit = std::move(out);
+  return true;
+}
+
+bool AdoptLadderShape(const DmfPointFit& replaced, const DmfSlice& slice, const DmfNdfGrid& grid,
+                      const DmfPointFitOptions& options, DmfPointFit* fit) {
+  if (replaced.log_ndf.empty() || !(replaced.k_s > 0)) return false;
+  DmfPointFit out = *fit;
+  out.alpha = replaced.alpha;
+  out.smith_alpha = replaced.smith_alpha;
+  out.log_ndf = replaced.log_ndf;
+  const double per_k_s = std::max(0.0, replaced.transmittance - kPi * replaced.rho_d) / replaced.k_s;
+  if (!ScaleLadderShape(slice, grid, options, per_k_s, &out)) return false;
+  *fit = std::move(out);
+  return true;
 }
 
 }  // namespace thinslab

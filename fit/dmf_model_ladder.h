@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // Fit no more model than a slice needs (issue #8, the BTDF rungs of the ladder on dot-scan
 // data). For one point's slice, in order of complexity:
-//   rung 3  single rough GGX interface (Walter et al. 2007): alpha_g, k_s          (2 parameters)
-//   rung 4  dual-microfacet with an analytic isotropic GGX NDF (Dai Eq. 11 with D and G
-//           of one GGX roughness): alpha_ndf, the Eq. 11 weight alpha, k_s            (3 parameters)
+//   rung 3  single rough GGX or Beckmann interface (Walter et al. 2007): alpha_g, k_s
+//                                                                                    (2 parameters)
+//   rung 4  dual-microfacet with an analytic isotropic GGX or Beckmann NDF (Dai Eq. 11 with D
+//           and G of one roughness): alpha_ndf, the Eq. 11 weight alpha, k_s          (3 parameters)
+// (the family and, for rung 3, the rough face are discrete choices by the training cost.)
 //   rung 5  dual-microfacet with the tabulated NDF (fit/dmf_point_fit.h): the interior
 //           cells of the N x N grid, alpha, smith_alpha, k_s                   (N^2 pi/4 + ~3)
 // A slice whose lobe is narrower than the dot spacing or that shows no scattering at all
@@ -28,13 +30,15 @@ namespace thinslab {
 
 struct AnalyticDmfFit {
   bool ok = false;
-  double alpha_ndf = 0.2;  // GGX roughness of the virtual surface (D and G).
+  MicrofacetFamily family = MicrofacetFamily::kGgx;
+  double alpha_ndf = 0.2;  // Roughness of the virtual surface (D and G of `family`).
   double alpha = 0.5;      // Eq. 11 weight.
   double k_s = 0, rho_d = 0;
   double log_rms_residual = 0;
 };
 
-// Rung 4 by Ceres on the Eq. 15 log residuals, from three starts of the weight (0.2, 0.5, 0.8).
+// Rung 4 by Ceres on the Eq. 15 log residuals, per family from three starts of the weight
+// (0.2, 0.5, 0.8); the lowest cost is kept.
 AnalyticDmfFit FitAnalyticDualMicrofacet(const DmfSlice& slice, const DmfPointFitOptions& options);
 double PredictAnalyticDualMicrofacet(const AnalyticDmfFit& fit, double eta, const Eigen::Vector3d& i,
                                      const Eigen::Vector3d& o);
@@ -43,16 +47,22 @@ constexpr int kNumLadderRungs = 3;
 constexpr std::array<int, kNumLadderRungs> kLadderRungIds = {3, 4, 5};  // Issue #8 numbering.
 const char* LadderRungName(int rung_index);
 
+// How the ladder chooses: the held-out paired comparison (default), or the smallest BIC on the
+// training log residuals (n ln(RSS / n) + k ln n, summed over a group's points).
+enum class LadderCriterion { kHeldOut, kBic };
+const char* LadderCriterionName(LadderCriterion criterion);  // "held-out", "bic".
+
 struct LadderOptions {
   DmfPointFitOptions point;
+  LadderCriterion criterion = LadderCriterion::kHeldOut;
   double significance_sigmas = 2.0;
   double lobe_fraction = 0.1;  // Held-out dots above this fraction of the peak are scored.
 };
 
 struct LadderResult {
   bool specular = false;       // Rung 0: no rung fitted.
-  int chosen = -1;             // Index into kLadderRungIds; -1 when no rung could be scored.
-  int chosen_by_bic = -1;
+  int chosen = -1;             // Index into kLadderRungIds by options.criterion; -1 when no rung could be scored.
+  int chosen_by_bic = -1;      // Index into kLadderRungIds by BIC alone (reported either way).
   std::array<double, kNumLadderRungs> held_out{{-1, -1, -1}};
   std::array<double, kNumLadderRungs> bic{{0, 0, 0}};
   std::array<int, kNumLadderRungs> parameters{{0, 0, 0}};
@@ -76,7 +86,27 @@ LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const Ladd
 // The choice for a group of points of one material (a pixel cluster, issue #8): the paired
 // comparison pooled over all their scored dots, each point's dots relative to its own signal.
 // Index into kLadderRungIds; -1 when no rung was fitted on every point of the group. Specular
-// points are skipped (they are rung 0 on their own).
-int ChooseLadderRung(const std::vector<const LadderResult*>& group, double significance_sigmas);
+// points are skipped (they are rung 0 on their own). With LadderCriterion::kBic, the rung of the
+// smallest BIC summed over the group's points (the rungs fitted on every one of them).
+int ChooseLadderRung(const std::vector<const LadderResult*>& group, double significance_sigmas,
+                     LadderCriterion criterion = LadderCriterion::kHeldOut);
+
+// The chosen rung's model in the form of the tabulated fit, so that maps.exr and the NDF atlas
+// hold what the ladder chose (issue #8: fit no more model than the sample needs): rung 3 is
+// alpha = 1 (rough top) or 0 with D of its family and roughness, rung 4 the analytic weight and
+// D; ln D is sampled at the centres of the cells inside the disk (ln epsilon outside, as fitted),
+// smith_alpha is the analytic roughness (the tabulated model's Smith term is GGX's: exact for
+// GGX, for Beckmann within the few per cent the two Smith terms differ below grazing). k_s is
+// refitted in closed form on `slice`'s training dots (the Eq. 15 objective), so a point of a
+// clustered run can take its representative's shape with its own scale; rho_d is kept.
+// `rung_index` 0 or 1 (kLadderRungIds 3 or 4); other values, or a shape that was not fitted,
+// leave `fit` unchanged and return false.
+bool ReplaceWithLadderRung(const LadderResult& shape, int rung_index, const DmfSlice& slice, const DmfNdfGrid& grid,
+                           const DmfPointFitOptions& options, DmfPointFit* fit);
+// A point of a clustered run that inherits its representative's choice takes the
+// representative's replaced model (`replaced`, from ReplaceWithLadderRung) with its own k_s; the
+// transmittance is the representative's rescaled, as for interpolated points (fit/dmf_map_fit.cc).
+bool AdoptLadderShape(const DmfPointFit& replaced, const DmfSlice& slice, const DmfNdfGrid& grid,
+                      const DmfPointFitOptions& options, DmfPointFit* fit);
 
 }  // namespace thinslab

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "fit/small_dense_solve.h"
 #include "optics/dual_microfacet_btdf.h"
 #include "optics/microfacet.h"
 
@@ -239,12 +240,7 @@ double FitSmithAlpha(const std::vector<Row>& rows, const std::vector<double>& lo
   }
   problem.SetParameterLowerBound(&log_a, 0, std::log(0.01));
   problem.SetParameterUpperBound(&log_a, 0, std::log(1.5));
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::DENSE_QR;
-  options.max_num_iterations = 30;
-  options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
+  SolveSmallDenseProblem(&problem, 30);
   return std::exp(log_a);
 }
 
@@ -493,6 +489,36 @@ double DirectionalTransmittance(const DmfPointFit& fit, const DmfNdfGrid& grid, 
     }
   }
   return sum * h * h;
+}
+
+double FitLogScale(const DmfSlice& slice, const DmfPointFit& shape, const DmfNdfGrid& grid,
+                   const DmfPointFitOptions& options, int* used) {
+  DmfPointFit unit = shape;
+  unit.k_s = 1;
+  unit.rho_d = 0;
+  double sum = 0;
+  int n = 0;
+  for (int q : UsableTrainingDots(slice, options)) {
+    const double pred = PredictDualMicrofacet(unit, grid, options.eta, slice.i[q], slice.o);
+    if (!(pred > 0)) continue;
+    sum += std::log((slice.value[q] - slice.rho_d) / pred);
+    ++n;
+  }
+  *used = n;
+  return n > 0 ? sum / n : 0;
+}
+
+double LogRmsResidual(const DmfSlice& slice, const DmfPointFit& fit, const DmfNdfGrid& grid,
+                      const DmfPointFitOptions& options) {
+  double sum = 0;
+  int n = 0;
+  for (int q : UsableTrainingDots(slice, options)) {
+    const double pred = PredictDualMicrofacet(fit, grid, options.eta, slice.i[q], slice.o) - fit.rho_d;
+    if (!(pred > 0)) continue;
+    sum += Sqr(std::log((slice.value[q] - slice.rho_d) / pred));
+    ++n;
+  }
+  return n > 0 ? std::sqrt(sum / n) : 0;
 }
 
 }  // namespace thinslab

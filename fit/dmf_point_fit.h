@@ -151,6 +151,15 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
 double PredictDualMicrofacet(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& i,
                              const Eigen::Vector3d& o);
 
+// ln k_s of the point of `slice` for a model shape (alpha, D, smith) borrowed from `shape`: the
+// mean log ratio of measurement to unit-scale prediction over the usable training dots (the
+// closed-form minimum of the Eq. 15 objective in ln k_s); `used` = dots that entered.
+double FitLogScale(const DmfSlice& slice, const DmfPointFit& shape, const DmfNdfGrid& grid,
+                   const DmfPointFitOptions& options, int* used);
+// RMS of the Eq. 15 log residuals of `fit` over the usable training dots.
+double LogRmsResidual(const DmfSlice& slice, const DmfPointFit& fit, const DmfNdfGrid& grid,
+                      const DmfPointFitOptions& options);
+
 // Relative RMS error of a prediction on the held-out dots of `slice` inside the lobe (measured
 // R - rho_d above `lobe_fraction` of the held-out peak): sqrt(sum (pred - meas)^2 / sum
 // (meas - rho_d)^2). -1 when no held-out dot is in the lobe. `predict` maps (i, o) to R.

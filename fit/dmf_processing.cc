@@ -270,12 +270,16 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   const double dot_area = kPi * Sqr(dot_radius_px * monitor.pixel_pitch_m);
   std::vector<int> saturated_dots(np, 0);
   int q = 0;
+  const int check_stride = std::max(1, nd / kDotsExposureChecked);
   for (const auto& [yx, frames] : by_dot) {
     HdrImage hdr;
     SessionMergeInfo info;
+    const bool check = q % check_stride == 0;
     THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, darks, response,
-                                                 HdrMergeOptions(), 1.0, &hdr, &info)
+                                                 HdrMergeOptions(), 1.0, &hdr, &info,
+                                                 check ? ExposureCheckMode::kCheck : ExposureCheckMode::kNone)
                                  .WithContext(DotName(displayed[q])));
+    if (check) CombineExposureChecks(info.exposure_check, &report->exposure_check);  // One bracket for all dots.
     report->num_frames += info.num_frames;
     report->num_exposures = std::max(report->num_exposures, info.num_exposures);
     const Image radiance = rectifier.Rectify(hdr.radiance);
@@ -297,6 +301,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     ++q;
   }
   report->merge_s = Seconds(t);
+  report->exposure_warning = report->exposure_check.Warning();
 
   for (int p = 0; p < np; ++p) {
     const int x = p % grid.width_px, y = p / grid.width_px;

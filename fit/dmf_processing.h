@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "calib/dot_geometry.h"
+#include "calib/exposure_check.h"
 #include "calib/session_calibration.h"
 #include "core/session_recovery.h"
 #include "core/status.h"
@@ -61,6 +62,13 @@ struct DmfProcessingReport {
   // hides their tails, so they read narrower than they are (docs/known_gaps.md).
   double dark_exposure_us = 0, dark_fraction_of_range = 0;
   std::string dark_level_warning;
+  // Does the camera apply the exposures it reports (calib/exposure_check.h)? Measured on the
+  // brackets of up to kDotsExposureChecked dots spread over the scan (about as costly as their
+  // merges), per exposure the factor from the dot that compared the most pixels
+  // (CombineExposureChecks). Its Warning() is `exposure_warning`: Eq. 12 then scales each exposure's share of a lobe by a different wrong
+  // factor (`calib hdr --exposures measured` measures the factors; docs/models/radiometric_calibration.md).
+  ExposureCheck exposure_check;
+  std::string exposure_warning;
   double median_dot_radiance = 0;  // L_q [DN/us].
   int saturated_points = 0, outside_points = 0;
   double geometry_s = 0, merge_s = 0, total_s = 0;
@@ -71,6 +79,7 @@ struct DmfProcessingReport {
 };
 
 inline constexpr double kMaxDarkFractionOfRange = 0.2;
+inline constexpr int kDotsExposureChecked = 16;
 
 Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingOptions& options, DmfSliceSet* slices,
                             DmfProcessingReport* report);

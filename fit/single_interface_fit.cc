@@ -5,12 +5,14 @@
 
 #include <cmath>
 
+#include "fit/small_dense_solve.h"
 #include "optics/dual_microfacet_btdf.h"
 #include "optics/microfacet.h"
 
 namespace thinslab {
 namespace {
 
+template <template <typename> class Distribution>
 struct SingleInterfaceResidual {
   Eigen::Vector3d i, o;
   double log_value, eta;
@@ -19,8 +21,8 @@ struct SingleInterfaceResidual {
   bool operator()(const T* log_alpha, const T* log_k, T* residual) const {
     using std::exp;
     using std::log;
-    const GgxDistributionT<T> ggx(exp(log_alpha[0]));
-    const DualMicrofacetBtdf<GgxDistributionT<T>> btdf(ggx, ggx, T(eta));
+    const Distribution<T> ndf(exp(log_alpha[0]));
+    const DualMicrofacetBtdf<Distribution<T>> btdf(ndf, ndf, T(eta));
     const Vector3T<T> it = i.cast<T>(), ot = o.cast<T>();
     const T rho = rough_top ? btdf.EvalTop(it, ot) : btdf.EvalBottom(it, ot);
     // A configuration that cannot transmit along (i, o) predicts 0; a large finite residual keeps
@@ -30,50 +32,74 @@ struct SingleInterfaceResidual {
   }
 };
 
+// One face, one family: returns the final cost (1e300 when nothing was fitted).
+template <template <typename> class Distribution>
+double FitOneConfiguration(const DmfSlice& slice, const std::vector<int>& used, double eta, bool rough_top,
+                           double* alpha, double* k_s) {
+  double log_alpha = std::log(0.2), log_k = 0;
+  ceres::Problem problem;
+  using Residual = SingleInterfaceResidual<Distribution>;
+  for (int q : used) {
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Residual, 1, 1, 1>(new Residual{
+                                 slice.i[q], slice.o, std::log(slice.value[q] - slice.rho_d), eta, rough_top}),
+                             nullptr, &log_alpha, &log_k);
+  }
+  problem.SetParameterLowerBound(&log_alpha, 0, std::log(kMinMicrofacetAlpha));
+  problem.SetParameterUpperBound(&log_alpha, 0, std::log(kMaxMicrofacetAlpha));
+  const double cost = SolveSmallDenseProblem(&problem, 50);
+  *alpha = std::exp(log_alpha);
+  *k_s = std::exp(log_k);
+  return cost;
+}
+
+template <typename Distribution>
+double EvalFace(const Distribution& ndf, bool rough_top, double eta, const Eigen::Vector3d& i,
+                const Eigen::Vector3d& o) {
+  const auto btdf = MakeDualMicrofacetBtdf(ndf, ndf, eta);
+  return rough_top ? btdf.EvalTop(i, o) : btdf.EvalBottom(i, o);
+}
+
 }  // namespace
 
-SingleInterfaceFit FitSingleInterfaceGgx(const DmfSlice& slice, const DmfPointFitOptions& options) {
+const char* MicrofacetFamilyName(MicrofacetFamily family) {
+  return family == MicrofacetFamily::kBeckmann ? "beckmann" : "ggx";
+}
+
+SingleInterfaceFit FitSingleInterface(const DmfSlice& slice, const DmfPointFitOptions& options, bool ggx_only) {
   SingleInterfaceFit best;
   best.rho_d = slice.rho_d;
   const std::vector<int> used = UsableTrainingDots(slice, options);
   if (static_cast<int>(used.size()) < options.min_measurements) return best;
   double best_cost = 1e300;
-  for (bool rough_top : {true, false}) {
-    double log_alpha = std::log(0.2), log_k = 0;
-    ceres::Problem problem;
-    for (int q : used) {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SingleInterfaceResidual, 1, 1, 1>(
-                                   new SingleInterfaceResidual{slice.i[q], slice.o,
-                                                               std::log(slice.value[q] - slice.rho_d), options.eta,
-                                                               rough_top}),
-                               nullptr, &log_alpha, &log_k);
-    }
-    problem.SetParameterLowerBound(&log_alpha, 0, std::log(kMinMicrofacetAlpha));
-    problem.SetParameterUpperBound(&log_alpha, 0, std::log(kMaxMicrofacetAlpha));
-    ceres::Solver::Options solver;
-    solver.linear_solver_type = ceres::DENSE_QR;
-    solver.max_num_iterations = 50;
-    solver.logging_type = ceres::SILENT;
-    ceres::Solver::Summary summary;
-    ceres::Solve(solver, &problem, &summary);
-    if (summary.final_cost < best_cost) {
-      best_cost = summary.final_cost;
-      best.ok = true;
-      best.rough_top = rough_top;
-      best.alpha = std::exp(log_alpha);
-      best.k_s = std::exp(log_k);
-      best.log_rms_residual = std::sqrt(2 * summary.final_cost / used.size());
+  for (MicrofacetFamily family : {MicrofacetFamily::kGgx, MicrofacetFamily::kBeckmann}) {
+    if (ggx_only && family != MicrofacetFamily::kGgx) continue;
+    for (bool rough_top : {true, false}) {
+      double alpha = 0, k_s = 0;
+      const double cost =
+          family == MicrofacetFamily::kGgx
+              ? FitOneConfiguration<GgxDistributionT>(slice, used, options.eta, rough_top, &alpha, &k_s)
+              : FitOneConfiguration<BeckmannDistributionT>(slice, used, options.eta, rough_top, &alpha, &k_s);
+      if (cost < best_cost) {
+        best_cost = cost;
+        best.ok = true;
+        best.rough_top = rough_top;
+        best.family = family;
+        best.alpha = alpha;
+        best.k_s = k_s;
+        best.log_rms_residual = std::sqrt(2 * cost / used.size());
+      }
     }
   }
   return best;
 }
 
-double PredictSingleInterfaceGgx(const SingleInterfaceFit& fit, double eta, const Eigen::Vector3d& i,
-                                 const Eigen::Vector3d& o) {
+double PredictSingleInterface(const SingleInterfaceFit& fit, double eta, const Eigen::Vector3d& i,
+                              const Eigen::Vector3d& o) {
   if (!fit.ok) return fit.rho_d;
-  const GgxDistribution ggx(fit.alpha);
-  const auto btdf = MakeDualMicrofacetBtdf(ggx, ggx, eta);
-  return fit.rho_d + fit.k_s * (fit.rough_top ? btdf.EvalTop(i, o) : btdf.EvalBottom(i, o));
+  const double rho = fit.family == MicrofacetFamily::kGgx
+                         ? EvalFace(GgxDistribution(fit.alpha), fit.rough_top, eta, i, o)
+                         : EvalFace(BeckmannDistribution(fit.alpha), fit.rough_top, eta, i, o);
+  return fit.rho_d + fit.k_s * rho;
 }
 
 }  // namespace thinslab

@@ -36,7 +36,9 @@ class SimDotMonitor::SimCamera : public Camera {
     SimBoardCamera::StampCapture(exposure_us_, &frame_counter_, &clock_ns_, frame);
     return Status::Ok();
   }
-  double exposure_us() const { return exposure_us_; }
+  // What the light is integrated over (SimSensorOptions::IntegratedExposureUs: the applied
+  // exposure plus the unreported offset).
+  double integrated_exposure_us() const { return exposure_us_ + rig_->options().sensor.exposure_offset_us; }
 
  private:
   const SimDotMonitor* rig_;
@@ -292,7 +294,7 @@ Image SimDotMonitor::RenderElectrons() const {
   const int s = o.render_supersample;
   // A camera pixel seeing radiance L collects electrons_per_radiance_us * L * exposure electrons
   // whatever its distance (radiance invariance); the renderer integrates L over the pixel area.
-  const double scale = o.electrons_per_radiance_us * camera_->exposure_us();
+  const double scale = o.electrons_per_radiance_us * camera_->integrated_exposure_us();
   Image out(cam.width_px, cam.height_px);
   for (int v = 0; v < cam.height_px; ++v) {
     for (int u = 0; u < cam.width_px; ++u) {
@@ -422,7 +424,7 @@ Image SimDotMonitor::RenderElectronsThroughSample() const {
   if (screen_map_.empty()) BuildScreenMap();
   if (sample_map_for_ != sample_.get()) BuildSampleMap();
   const int s = o.render_supersample, ss = s * s;
-  const double scale = o.electrons_per_radiance_us * camera_->exposure_us();
+  const double scale = o.electrons_per_radiance_us * camera_->integrated_exposure_us();
   Image out(cam.width_px, cam.height_px);
   // Direct view (off the sample and through smooth regions), skipping pixels whose screen
   // footprint misses every lit monitor pixel when the black level is 0.

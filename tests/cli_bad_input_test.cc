@@ -358,10 +358,44 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   ASSERT_TRUE(ReadExr(dir / "l1" + "/ladder.exr", &rungs).ok());
   const int rung_channel = rungs.ChannelIndex("rung");
   ASSERT_GE(rung_channel, 0);
+  // The choice takes effect in maps.exr: points on rung 3 (one rough face) hold alpha 0 or 1, and
+  // the summary counts the points replaced by rungs 3 and 4.
+  Image chosen_maps;
+  ASSERT_TRUE(ReadExr(dir / "l1" + "/maps.exr", &chosen_maps).ok());
+  EXPECT_EQ(chosen_maps.attributes().at("ladder_applied"), "true");
+  int rung_3_or_4 = 0;
   for (int p = 0; p < rungs.width() * rungs.height(); ++p) {
     const float rung = rungs.data()[p * rungs.num_channels() + rung_channel];
     EXPECT_TRUE(rung == -1 || rung == 0 || rung == 3 || rung == 4 || rung == 5) << rung;
+    const float alpha = chosen_maps.data()[p * chosen_maps.num_channels() + chosen_maps.ChannelIndex("alpha")];
+    if (rung == 3) {
+      EXPECT_TRUE(alpha == 0 || alpha == 1) << "point " << p << " alpha " << alpha;
+    }
+    rung_3_or_4 += rung == 3 || rung == 4;
   }
+  ASSERT_TRUE(ReadFileToString(dir / "l1" + "/summary.json", &summary_text).ok());
+  summary = nlohmann::json::parse(summary_text);
+  EXPECT_EQ(summary["ladder"]["criterion"], "held-out");
+  EXPECT_GT(summary["ladder"]["points_replaced"].get<int>(), 0);
+  EXPECT_LE(summary["ladder"]["points_replaced"].get<int>(), rung_3_or_4);
+  // BIC as the criterion, and the tabulated fit kept everywhere with --ladder-apply false.
+  const RunResult bic = RunThinslab("fit dmf " + scan +
+                                    " --pitch-mm 8 --hold-out true --ladder true --ladder-criterion bic "
+                                    "--ladder-apply false --out " + (dir / "l2"));
+  ASSERT_EQ(bic.exit_code, 0) << bic.output;
+  ASSERT_TRUE(ReadFileToString(dir / "l2" + "/summary.json", &summary_text).ok());
+  summary = nlohmann::json::parse(summary_text);
+  EXPECT_EQ(summary["ladder"]["criterion"], "bic");
+  EXPECT_EQ(summary["ladder"]["points_replaced"], 0);
+  Image kept_maps;
+  ASSERT_TRUE(ReadExr(dir / "l2" + "/maps.exr", &kept_maps).ok());
+  EXPECT_EQ(kept_maps.attributes().at("ladder_applied"), "false");
+  const RunResult bad_criterion =
+      RunThinslab("fit dmf " + scan + " --pitch-mm 8 --hold-out true --ladder true --ladder-criterion aic --out " +
+                  (dir / "l3"));
+  EXPECT_EQ(bad_criterion.exit_code, 1);
+  EXPECT_NE(bad_criterion.output.find("--ladder-criterion"), std::string::npos) << bad_criterion.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "l3"));
 
   const RunResult bad_option = RunThinslab("fit dmf " + scan + " --ndf-resolution 2 --out " + (dir / "x"));
   EXPECT_EQ(bad_option.exit_code, 1);

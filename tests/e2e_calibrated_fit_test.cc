@@ -293,6 +293,44 @@ TEST(CalibratedFit, DotScanTakesDotGeometryFromRigJson) {
   EXPECT_NE(refused.message().find("35 calibrated dots, the scan shows 36"), std::string::npos) << refused.message();
 }
 
+// The dot-scan processing checks the exposures of the dot brackets as `calib hdr` does
+// (calib/exposure_check.h): a camera that integrates 30 ms longer than it reports is named in the
+// report with the factor of its 50-period exposure; one that applies what it reports passes. A
+// bracket of 1, 50, 100, 200 and 400 refresh periods: the lobes seen through the sample are well
+// exposed in neighbouring long exposures (the default 1 and 800 periods share no well-exposed
+// pixels: the check then reports "not measured"); the single period keeps the all-dots frame
+// unsaturated.
+TEST(CalibratedFit, DotScanChecksTheExposuresTheCameraApplied) {
+  TempDir dir;
+  const double period_us = 1e6 / 85;
+  for (const double offset_us : {0.0, 30000.0}) {
+    SyntheticDotScanOptions sim = SmallDotScanRig();
+    sim.session.bracket.exposures_us = {period_us, 50 * period_us, 100 * period_us, 200 * period_us, 400 * period_us};
+    sim.rig.sensor.exposure_offset_us = offset_us;
+    const std::string session = dir / ("offset_" + std::to_string(static_cast<int>(offset_us)));
+    ASSERT_TRUE(SynthesizeDotScanSession(sim, session).ok());
+    DmfProcessingOptions processing;
+    processing.pitch_m = 0.01;
+    DmfSliceSet slices;
+    DmfProcessingReport report;
+    const Status s = PrepareDotScanSlices(session, processing, &slices, &report);
+    ASSERT_TRUE(s.ok()) << s.message();
+    ASSERT_TRUE(report.exposure_check.measured);
+    std::printf("dot scan, exposure offset %.0f us: largest measured/reported deviation %.4f; %s\n", offset_us,
+                report.exposure_check.max_deviation, report.exposure_warning.c_str());
+    if (offset_us == 0) {
+      EXPECT_LT(report.exposure_check.max_deviation, kExposureCheckTolerance);
+      EXPECT_EQ(report.exposure_warning, "");
+    } else {
+      // 588235 us reported, 618235 integrated, relative to the longest (4705882 + 30000 us): x1.045.
+      const double t50 = 50 * period_us, t400 = 400 * period_us;
+      const double expected = (t50 + offset_us) / t50 / ((t400 + offset_us) / t400);
+      EXPECT_NEAR(report.exposure_check.max_deviation, expected - 1, 0.01);
+      EXPECT_NE(report.exposure_warning.find("588235 us reported"), std::string::npos) << report.exposure_warning;
+    }
+  }
+}
+
 // The monitor distance d is what a lab measures by hand. With d 2 mm too large in the manifest,
 // the all-dots grid comes out 0.27 % too large on the plane: `calib dots` and the fit's own dot
 // calibration say so (a warning naming the amount), and with --refine-distance /

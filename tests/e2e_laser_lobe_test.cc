@@ -5,11 +5,17 @@
 // the unchanged calibration and fit stages must recover g.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "app/commands.h"
+#include "core/file.h"
+#include "calib/exposure_check.h"
 #include "sim/laser_lobe_rig.h"
 #include "tests/testing/temp_dir.h"
 
@@ -40,6 +46,15 @@ PhaseFitSummary SimulateAndFit(const SyntheticLaserSessionOptions& sim, const Te
   const Status fit =
       FitPhasePipeline(session, session + "/fit/phase", options, LaserLobePreparationOptions(), false, "# test\n", &summary, &rings, ladder);
   EXPECT_TRUE(fit.ok()) << fit.message();
+  // The laser bracket's exposures are checked against its frames (calib/exposure_check.h); the
+  // simulated camera applies what it reports unless sensor.exposure_offset_us is set.
+  std::string text;
+  EXPECT_TRUE(ReadFileToString(session + "/fit/phase/summary.json", &text).ok());
+  const nlohmann::json check = nlohmann::json::parse(text, nullptr, false)["exposure_check"];
+  if (sim.rig.sensor.exposure_offset_us == 0) {
+    EXPECT_EQ(check["warning"], "") << name;
+    EXPECT_LT(check["max_deviation"].get<double>(), kExposureCheckTolerance) << name;
+  }
   return summary;
 }
 
@@ -135,6 +150,28 @@ TEST(LaserLobe, OffCentreBeamAndSaturatedSpike) {
               free_tau.g, free_tau.sigma_g);
   EXPECT_GT(free_tau.sigma_tau, 0);
   EXPECT_LE(std::abs(free_tau.g - 0.8), kMaxAbsErrorG);
+}
+
+// A camera that integrates 3 ms longer than it reports: the fit's own HDR merge names the
+// exposures it did not apply in summary.json, as `calib hdr` does. The lobe is well exposed in
+// neighbouring frames from 20000 us on (the shorter frames see little more than the spike), so
+// 20000 us is the shortest exposure measured: 23000 us integrated, x1.148 relative to the longest.
+TEST(LaserLobe, FitNamesExposuresTheCameraDidNotApply) {
+  TempDir dir;
+  SyntheticLaserSessionOptions sim = TestRig(0.5, 5);
+  sim.rig.sensor.exposure_offset_us = 3000;
+  SimulateAndFit(sim, dir, "exposure_offset");
+  std::string text;
+  ASSERT_TRUE(ReadFileToString(dir / "exposure_offset/fit/phase/summary.json", &text).ok());
+  const nlohmann::json check = nlohmann::json::parse(text, nullptr, false)["exposure_check"];
+  const std::string warning = check["warning"];
+  std::printf("exposure offset 3000 us: largest deviation %.4f; %s\n", check["max_deviation"].get<double>(),
+              warning.c_str());
+  const std::vector<double> reported = check["reported_us"], factor = check["measured_over_reported"];
+  const auto it = std::find(reported.begin(), reported.end(), 20000.0);
+  ASSERT_NE(it, reported.end());
+  EXPECT_NEAR(factor[it - reported.begin()], 23000.0 / 20000 / (2003000.0 / 2000000), 0.02);
+  EXPECT_NE(warning.find("20000 us reported"), std::string::npos) << warning;
 }
 
 }  // namespace
