@@ -31,41 +31,85 @@ void ForEachDistanceRow(const RowMatrix& a, const RowMatrix& b, const Visit& vis
   }
 }
 
-// Eqs. 21-22 with w >= 0: least squares of G w = y subject to sum w = 1, by an active set that
-// drops the most negative weight until all are non-negative.
-Eigen::VectorXd AffineWeights(const Eigen::MatrixXd& g, const Eigen::VectorXd& y, double* residual) {
+}  // namespace
+
+Eigen::VectorXd AffineNonNegativeWeights(const Eigen::MatrixXd& g, const Eigen::VectorXd& y, double* residual) {
+  // Active set (Lawson and Hanson's NNLS with the affine constraint): solve the equality-
+  // constrained problem on the free set via its KKT system [G^T G 1; 1^T 0] [w; l] = [G^T y; 1];
+  // while a free weight is negative, step from the last feasible point towards the solution
+  // until a weight reaches 0 and fix that one; when all are >= 0, free the fixed weight whose
+  // multiplier g_j^T r + l (r = G w - y) is most negative, or stop: the KKT conditions hold.
   const int k = static_cast<int>(g.cols());
-  std::vector<int> active(k);
-  std::iota(active.begin(), active.end(), 0);
+  std::vector<char> free(k, 0);
   Eigen::VectorXd w = Eigen::VectorXd::Zero(k);
-  while (!active.empty()) {
-    const int m = static_cast<int>(active.size());
+  // Start from the single best column (feasible: one weight of 1).
+  int start = 0;
+  for (int j = 1; j < k; ++j) {
+    if ((g.col(j) - y).squaredNorm() < (g.col(start) - y).squaredNorm()) start = j;
+  }
+  free[start] = 1;
+  w[start] = 1;
+  auto solve_free = [&](Eigen::VectorXd* z, double* l) {
+    std::vector<int> idx;
+    for (int j = 0; j < k; ++j) {
+      if (free[j]) idx.push_back(j);
+    }
+    const int m = static_cast<int>(idx.size());
     Eigen::MatrixXd kkt = Eigen::MatrixXd::Zero(m + 1, m + 1);
     Eigen::VectorXd rhs(m + 1);
     for (int a = 0; a < m; ++a) {
-      for (int b = 0; b < m; ++b) kkt(a, b) = g.col(active[a]).dot(g.col(active[b]));
+      for (int c = 0; c < m; ++c) kkt(a, c) = g.col(idx[a]).dot(g.col(idx[c]));
       kkt(a, a) += 1e-9;  // Coincident representatives.
       kkt(a, m) = kkt(m, a) = 1;
-      rhs[a] = g.col(active[a]).dot(y);
+      rhs[a] = g.col(idx[a]).dot(y);
     }
     rhs[m] = 1;
     const Eigen::VectorXd x = kkt.fullPivLu().solve(rhs);
-    int most_negative = -1;
-    for (int a = 0; a < m; ++a) {
-      if (x[a] < 0 && (most_negative < 0 || x[a] < x[most_negative])) most_negative = a;
+    z->setZero(k);
+    for (int a = 0; a < m; ++a) (*z)[idx[a]] = x[a];
+    *l = x[m];
+  };
+  for (int outer = 0; outer < 4 * k; ++outer) {
+    Eigen::VectorXd z;
+    double l = 0;
+    for (int inner = 0; inner < k; ++inner) {
+      solve_free(&z, &l);
+      int blocking = -1;
+      double step = 1;
+      for (int j = 0; j < k; ++j) {
+        if (free[j] && z[j] < 0) {
+          const double t = w[j] / (w[j] - z[j]);
+          if (blocking < 0 || t < step) {
+            step = t;
+            blocking = j;
+          }
+        }
+      }
+      if (blocking < 0) break;
+      w += step * (z - w);
+      w[blocking] = 0;
+      free[blocking] = 0;
     }
-    if (most_negative < 0) {
-      w.setZero();
-      for (int a = 0; a < m; ++a) w[active[a]] = x[a];
-      break;
+    for (int j = 0; j < k; ++j) w[j] = free[j] ? std::max(0.0, z[j]) : 0.0;
+    const Eigen::VectorXd r = g * w - y;
+    int entering = -1;
+    double most_negative = -1e-12 * std::max(1.0, y.squaredNorm());
+    for (int j = 0; j < k; ++j) {
+      if (free[j]) continue;
+      const double multiplier = g.col(j).dot(r) + l;
+      if (multiplier < most_negative) {
+        most_negative = multiplier;
+        entering = j;
+      }
     }
-    active.erase(active.begin() + most_negative);
+    if (entering < 0) break;
+    free[entering] = 1;
   }
+  const double sum = w.sum();
+  if (sum > 0) w /= sum;
   *residual = (g * w - y).norm();
   return w;
 }
-
-}  // namespace
 
 bool DmfClusteringOptions::Check(std::string* error) const {
   std::ostringstream e;
@@ -200,7 +244,7 @@ DmfClustering ClusterSlices(const Eigen::MatrixXf& shapes, const std::vector<uin
     for (int j = 0; j < k_nn; ++j) g.col(j) = reps.row(order[j]).transpose().cast<double>();
     const Eigen::VectorXd y = projected.row(k).transpose().cast<double>();
     double residual = 0;
-    const Eigen::VectorXd w = AffineWeights(g, y, &residual);
+    const Eigen::VectorXd w = AffineNonNegativeWeights(g, y, &residual);
     for (int j = 0; j < k_nn; ++j) {
       out.neighbors[base + j] = order[j];
       out.weights[base + j] = w[j];

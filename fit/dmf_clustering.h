@@ -15,7 +15,8 @@
 //    every point is assigned; the representative of a cluster is its member nearest the centre
 //    (a real point, fitted with its own data).
 //  - N_i: the num_neighbors representatives nearest to point i; weights solve Eqs. 21-22 in the
-//    least-squares sense with w >= 0 (active set), so interpolated NDFs stay non-negative.
+//    least-squares sense with w >= 0 (AffineNonNegativeWeights, an exact active-set solver), so
+//    interpolated NDFs stay non-negative.
 #pragma once
 
 #include <Eigen/Core>
@@ -54,5 +55,10 @@ struct DmfClustering {
 // a point (it gets no neighbours).
 DmfClustering ClusterSlices(const Eigen::MatrixXf& shapes, const std::vector<uint8_t>& valid,
                             const DmfClusteringOptions& options);
+
+// Eqs. 21-22 with w >= 0: the least-squares solution of G w = y (columns of G: the neighbouring
+// representatives' slices, y: the point's) subject to sum w = 1 and w >= 0, exact (an active set
+// that also re-frees weights whose KKT multiplier says so); `residual` = |G w - y|.
+Eigen::VectorXd AffineNonNegativeWeights(const Eigen::MatrixXd& g, const Eigen::VectorXd& y, double* residual);
 
 }  // namespace thinslab

@@ -37,9 +37,9 @@ struct AnalyticDmfResidual {
 
 // One family from one start of the weight: the final cost (1e300 when nothing was fitted).
 template <template <typename> class Distribution>
-double FitAnalyticOnce(const DmfSlice& slice, const std::vector<int>& used, double eta, double start,
-                       AnalyticDmfFit* fit) {
-  double log_alpha = std::log(0.2), weight = start, log_k = 0;
+double FitAnalyticOnce(const DmfSlice& slice, const std::vector<int>& used, double eta, double start_alpha_ndf,
+                       double start_weight, AnalyticDmfFit* fit) {
+  double log_alpha = std::log(start_alpha_ndf), weight = start_weight, log_k = 0;
   ceres::Problem problem;
   using Residual = AnalyticDmfResidual<Distribution>;
   for (int q : used) {
@@ -70,20 +70,27 @@ AnalyticDmfFit FitAnalyticDualMicrofacet(const DmfSlice& slice, const DmfPointFi
   const std::vector<int> used = UsableTrainingDots(slice, options);
   if (static_cast<int>(used.size()) < options.min_measurements) return best;
   double best_cost = 1e300;
-  for (MicrofacetFamily family : {MicrofacetFamily::kGgx, MicrofacetFamily::kBeckmann}) {
-    for (double start : {0.2, 0.5, 0.8}) {
-      AnalyticDmfFit fit = best;
-      fit.family = family;
-      const double cost = family == MicrofacetFamily::kGgx
-                              ? FitAnalyticOnce<GgxDistributionT>(slice, used, options.eta, start, &fit)
-                              : FitAnalyticOnce<BeckmannDistributionT>(slice, used, options.eta, start, &fit);
-      if (cost < best_cost) {
-        best_cost = cost;
-        best = fit;
-        best.ok = true;
-        best.log_rms_residual = std::sqrt(2 * cost / used.size());
-      }
+  auto keep_if_better = [&](const AnalyticDmfFit& fit, double cost) {
+    if (cost < best_cost) {
+      best_cost = cost;
+      best = fit;
+      best.ok = true;
+      best.log_rms_residual = std::sqrt(2 * cost / used.size());
     }
+  };
+  // GGX from three starts of the weight; Beckmann (whose Smith term, with erfc, costs about 3x
+  // per residual) once, from the best GGX solution: the two families' lobes of one roughness
+  // are alike near the peak, so the weight and roughness carry over.
+  for (double start : {0.2, 0.5, 0.8}) {
+    AnalyticDmfFit fit = best;
+    fit.family = MicrofacetFamily::kGgx;
+    keep_if_better(fit, FitAnalyticOnce<GgxDistributionT>(slice, used, options.eta, 0.2, start, &fit));
+  }
+  if (best.ok) {
+    AnalyticDmfFit fit = best;
+    fit.family = MicrofacetFamily::kBeckmann;
+    keep_if_better(fit, FitAnalyticOnce<BeckmannDistributionT>(slice, used, options.eta, best.alpha_ndf, best.alpha,
+                                                                &fit));
   }
   return best;
 }

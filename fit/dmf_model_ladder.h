@@ -37,8 +37,8 @@ struct AnalyticDmfFit {
   double log_rms_residual = 0;
 };
 
-// Rung 4 by Ceres on the Eq. 15 log residuals, per family from three starts of the weight
-// (0.2, 0.5, 0.8); the lowest cost is kept.
+// Rung 4 by Ceres on the Eq. 15 log residuals: GGX from three starts of the weight (0.2, 0.5,
+// 0.8), Beckmann from the best GGX solution; the lowest cost is kept.
 AnalyticDmfFit FitAnalyticDualMicrofacet(const DmfSlice& slice, const DmfPointFitOptions& options);
 double PredictAnalyticDualMicrofacet(const AnalyticDmfFit& fit, double eta, const Eigen::Vector3d& i,
                                      const Eigen::Vector3d& o);
