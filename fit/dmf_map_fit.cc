@@ -226,7 +226,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         f.status = DmfStatus::kNoLobe;
       } else if (f.measured_ndf_fraction < options.point.min_measured_ndf_fraction) {
         f.status = DmfStatus::kUndersampled;
-      } else if (f.transmittance > options.point.max_transmittance || f.k_s > options.point.max_k_s) {
+      } else if (options.point.Unphysical(f.transmittance, f.k_s)) {
         f.status = DmfStatus::kUnphysical;
       } else {
         f.status = DmfStatus::kInterpolated;

@@ -182,10 +182,6 @@ LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const Ladd
   return r;
 }
 
-const char* LadderCriterionName(LadderCriterion criterion) {
-  return criterion == LadderCriterion::kBic ? "bic" : "held-out";
-}
-
 int ChooseLadderRung(const std::vector<const LadderResult*>& group, double significance_sigmas,
                      LadderCriterion criterion) {
   // Per-dot squared errors relative to their point's signal, pooled over the group; and the
@@ -232,10 +228,6 @@ void SampleLogNdf(const Distribution& ndf, const DmfNdfGrid& grid, std::vector<d
   }
 }
 
-}  // namespace
-
-namespace {
-
 // `out` holds a shape (alpha, log_ndf, smith_alpha): its k_s on this point's training dots, the
 // residual, the transmittance (`transmittance_per_k_s` of the refracted part when known, else
 // integrated) and the status.
@@ -249,7 +241,7 @@ bool ScaleLadderShape(const DmfSlice& slice, const DmfNdfGrid& grid, const DmfPo
   out->alpha_iterations = 0;
   out->transmittance = transmittance_per_k_s >= 0 ? kPi * out->rho_d + out->k_s * transmittance_per_k_s
                                                   : DirectionalTransmittance(*out, grid, options.eta, slice.o);
-  if (out->transmittance > options.max_transmittance || out->k_s > options.max_k_s) {
+  if (options.Unphysical(out->transmittance, out->k_s)) {
     out->status = DmfStatus::kUnphysical;
   } else if (out->status != DmfStatus::kInterpolated) {
     out->status = DmfStatus::kOk;  // Not undersampled or unconverged: those describe the tabulated fit.

@@ -50,7 +50,6 @@ const char* LadderRungName(int rung_index);
 // How the ladder chooses: the held-out paired comparison (default), or the smallest BIC on the
 // training log residuals (n ln(RSS / n) + k ln n, summed over a group's points).
 enum class LadderCriterion { kHeldOut, kBic };
-const char* LadderCriterionName(LadderCriterion criterion);  // "held-out", "bic".
 
 struct LadderOptions {
   DmfPointFitOptions point;

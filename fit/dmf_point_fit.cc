@@ -450,7 +450,7 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
     fit.status = DmfStatus::kNotConverged;
   } else if (fit.measured_ndf_fraction < options.min_measured_ndf_fraction) {
     fit.status = DmfStatus::kUndersampled;
-  } else if (fit.transmittance > options.max_transmittance || fit.k_s > options.max_k_s) {
+  } else if (options.Unphysical(fit.transmittance, fit.k_s)) {
     fit.status = DmfStatus::kUnphysical;
   } else {
     fit.status = DmfStatus::kOk;

@@ -100,6 +100,8 @@ struct DmfPointFitOptions {
   // measured on the simulated rig); 4 leaves room for rho_d and calibration errors.
   double max_k_s = 4;
   bool Check(std::string* error) const;
+  // Status kUnphysical: transmits more than max_transmittance, or k_s above max_k_s.
+  bool Unphysical(double transmittance, double k_s) const { return transmittance > max_transmittance || k_s > max_k_s; }
 };
 
 struct DmfPointFit {

@@ -61,10 +61,6 @@ double EvalFace(const Distribution& ndf, bool rough_top, double eta, const Eigen
 
 }  // namespace
 
-const char* MicrofacetFamilyName(MicrofacetFamily family) {
-  return family == MicrofacetFamily::kBeckmann ? "beckmann" : "ggx";
-}
-
 SingleInterfaceFit FitSingleInterface(const DmfSlice& slice, const DmfPointFitOptions& options, bool ggx_only) {
   SingleInterfaceFit best;
   best.rho_d = slice.rho_d;

@@ -16,7 +16,6 @@
 namespace thinslab {
 
 enum class MicrofacetFamily { kGgx, kBeckmann };
-const char* MicrofacetFamilyName(MicrofacetFamily family);  // "ggx", "beckmann".
 
 struct SingleInterfaceFit {
   bool ok = false;
