@@ -155,18 +155,19 @@ Status RunLadder(const DmfSliceSet& slices, DmfMaps* maps_out, const DmfMapFitOp
     // The evaluated points first (their own rung fits), then the points that inherit a
     // representative's choice take its replaced model with their own k_s.
     std::vector<uint8_t> replaced(slices.num_points(), 0);
+    const DmfPointFitOptions rung_options = AnalyticRungOptions(options);  // k_s as rungs 3-4 fit it.
     auto rung_index = [&](int p) { return rung_of_point[p] == 3 ? 0 : rung_of_point[p] == 4 ? 1 : -1; };
     ParallelFor(static_cast<int>(points.size()), fit.num_threads, [&](int k) {
       const int p = points[k];
       if (rung_index(p) < 0 || maps.fits[p].log_ndf.empty()) return;
-      replaced[p] = ReplaceWithLadderRung(results[k], rung_index(p), slices.Slice(p), grid, fit.point,
+      replaced[p] = ReplaceWithLadderRung(results[k], rung_index(p), slices.Slice(p), grid, rung_options,
                                           &maps_out->fits[p]);
     });
     ParallelFor(slices.num_points(), fit.num_threads, [&](int p) {
       const int src = source_of_point[p];
       if (src < 0 || points[src] == p || rung_index(p) < 0 || maps.fits[p].log_ndf.empty()) return;
       if (!replaced[points[src]]) return;
-      replaced[p] = AdoptLadderShape(maps.fits[points[src]], slices.Slice(p), grid, fit.point, &maps_out->fits[p]);
+      replaced[p] = AdoptLadderShape(maps.fits[points[src]], slices.Slice(p), grid, rung_options, &maps_out->fits[p]);
     });
     for (uint8_t r : replaced) out->replaced += r;
   }
@@ -453,6 +454,8 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddBool("fit-smith", &run.fit.point.fit_smith_alpha, "fit the Smith roughness (Levenberg-Marquardt)");
   parser.AddDouble("min-measured-ndf-fraction", &run.fit.point.min_measured_ndf_fraction,
                    "below this measured share of the fitted NDF: status undersampled");
+  parser.AddDouble("max-edge-fraction", &run.fit.point.max_edge_fraction,
+                   "lobe above this fraction of its peak at the dot grid's border: status undersampled");
   parser.AddDouble("max-transmittance", &run.fit.point.max_transmittance,
                    "above this directional transmittance of the fit: status unphysical");
   parser.AddDouble("max-k-s", &run.fit.point.max_k_s, "above this k_s: status unphysical");

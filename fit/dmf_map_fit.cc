@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "fit/dmf_map_fit.h"
 
+#include "fit/dmf_slice_shape.h"
+
 #include <glog/logging.h>
 
 #include <chrono>
@@ -34,6 +36,13 @@ DmfSlice DmfSliceSet::Slice(int p) const {
   slice.solid_angle.resize(nd);
   if (!sigma.empty()) slice.sigma.resize(nd);
   slice.train = train;
+  if (static_cast<int>(nd) == dots_nx * dots_ny) {
+    slice.edge.resize(nd);
+    for (int q = 0; q < nd; ++q) {
+      const int ix = q % dots_nx, iy = q / dots_nx;
+      slice.edge[q] = ix == 0 || iy == 0 || ix == dots_nx - 1 || iy == dots_ny - 1;
+    }
+  }
   const size_t base = static_cast<size_t>(p) * nd;
   for (int q = 0; q < nd; ++q) {
     const Eigen::Vector3d to_dot = dot_positions[q] - x;
@@ -108,7 +117,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   THINSLAB_RETURN_IF_ERROR(slices.Check());
   const auto start = std::chrono::steady_clock::now();
   const DmfNdfGrid grid(options.point.ndf_resolution);
-  const int np = slices.num_points(), nd = slices.num_dots();
+  const int np = slices.num_points();
   maps->width = slices.width;
   maps->height = slices.height;
   maps->ndf_resolution = grid.n();
@@ -122,11 +131,14 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   std::vector<double> rho_d(np, 0);
   std::vector<uint8_t> fit_me(np, 0);
   Eigen::MatrixXf shapes;
-  std::vector<int> train_dots;
-  for (int q = 0; q < nd; ++q) {
-    if (slices.train[q]) train_dots.push_back(q);
+  // Shapes on one grid of u = i_xy + o_xy for every point (fit/dmf_slice_shape.h), as fine as
+  // the dot grid, spanning what the sample's central point sees.
+  SliceShapeGrid shape_grid;
+  if (options.cluster) {
+    shape_grid = MakeSliceShapeGrid(slices.Slice((slices.height / 2) * slices.width + slices.width / 2),
+                                    std::max(slices.dots_nx, slices.dots_ny));
+    shapes.setZero(np, shape_grid.num_nodes());
   }
-  if (options.cluster) shapes.setZero(np, train_dots.size());
   ParallelFor(np, options.num_threads, [&](int p) {
     maps->fits[p].status = static_cast<DmfStatus>(slices.point_status[p]);
     if (slices.point_status[p] != static_cast<uint8_t>(DmfStatus::kOk)) return;
@@ -138,13 +150,11 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       maps->fits[p].status = precheck;
       return;
     }
-    double sum = 0;
-    for (int q : train_dots) sum += std::max(0.0, slice.value[q] - slice.rho_d);
     fit_me[p] = 1;
     if (options.cluster) {
-      for (size_t k = 0; k < train_dots.size(); ++k) {
-        shapes(p, k) = static_cast<float>(std::max(0.0, slice.value[train_dots[k]] - slice.rho_d) / sum);
-      }
+      Eigen::VectorXf shape(shape_grid.num_nodes());
+      AlignedSliceShape(slice, shape_grid, shape.data());
+      shapes.row(p) = shape.transpose();
     }
   });
   maps->timings.diffuse_s = Seconds(t);
@@ -224,7 +234,8 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       // An interpolated NDF is as measured as its representatives' (weighted).
       if (used == 0) {
         f.status = DmfStatus::kNoLobe;
-      } else if (f.measured_ndf_fraction < options.point.min_measured_ndf_fraction) {
+      } else if (f.measured_ndf_fraction < options.point.min_measured_ndf_fraction ||
+                 LobeFractionAtEdge(slice) > options.point.max_edge_fraction) {
         f.status = DmfStatus::kUndersampled;
       } else if (options.point.Unphysical(f.transmittance, f.k_s)) {
         f.status = DmfStatus::kUnphysical;

@@ -106,6 +106,12 @@ double PredictAnalyticDualMicrofacet(const AnalyticDmfFit& fit, double eta, cons
   return fit.rho_d + fit.k_s * MakeDualMicrofacetBtdf(ndf, ndf, eta).Eval(i, o, fit.alpha);
 }
 
+DmfPointFitOptions AnalyticRungOptions(const LadderOptions& options) {
+  DmfPointFitOptions analytic = options.point;
+  analytic.min_relative_value = std::max(analytic.min_relative_value, options.lobe_fraction);
+  return analytic;
+}
+
 const char* LadderRungName(int rung_index) {
   static const char* const kNames[kNumLadderRungs] = {"single_interface", "dual_microfacet_analytic",
                                                       "dual_microfacet_tabulated"};
@@ -120,11 +126,16 @@ LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const Ladd
     r.specular = true;
     return r;
   }
+  // Rungs 3 and 4 on the lobe's training dots, or all usable ones where the lobe has too few.
+  DmfPointFitOptions analytic_options = AnalyticRungOptions(options);
+  if (static_cast<int>(UsableTrainingDots(slice, analytic_options).size()) < analytic_options.min_measurements) {
+    analytic_options = options.point;
+  }
   auto t = std::chrono::steady_clock::now();
-  r.single = FitSingleInterface(slice, options.point);
+  r.single = FitSingleInterface(slice, analytic_options);
   r.seconds[0] = Seconds(t);
   t = std::chrono::steady_clock::now();
-  r.analytic = FitAnalyticDualMicrofacet(slice, options.point);
+  r.analytic = FitAnalyticDualMicrofacet(slice, analytic_options);
   r.seconds[1] = Seconds(t);
   t = std::chrono::steady_clock::now();
   r.tabulated = FitDualMicrofacetPoint(slice, grid, options.point);
@@ -156,6 +167,7 @@ LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const Ladd
   r.noise_floor = std::sqrt(noise / signal);
   std::array<std::vector<double>, kNumLadderRungs>& sq = r.squared_errors;
   r.signal = signal;
+  for (int q : scored) r.noise_variances.push_back(slice.sigma.empty() ? 0.0 : Sqr(slice.sigma[q]));
   for (int k = 0; k < kNumLadderRungs; ++k) {
     if (!fitted[k]) continue;
     double sum = 0;
@@ -166,13 +178,19 @@ LadderResult FitLadder(const DmfSlice& slice, const DmfNdfGrid& grid, const Ladd
     r.held_out[k] = std::sqrt(sum / signal);
   }
 
-  const int n = static_cast<int>(UsableTrainingDots(slice, options.point).size());
-  const double log_rms[kNumLadderRungs] = {r.single.log_rms_residual, r.analytic.log_rms_residual,
-                                           r.tabulated.log_rms_residual};
+  // BIC of every rung on the same training dots (those rungs 3-4 were fitted on): the Eq. 15
+  // log residuals ln(R - rho_d) - ln(prediction - rho_d).
+  const std::vector<int> bic_dots = UsableTrainingDots(slice, analytic_options);
+  const int n = static_cast<int>(bic_dots.size());
   double best_bic = 1e300;
   for (int k = 0; k < kNumLadderRungs; ++k) {
     if (!fitted[k] || r.held_out[k] < 0) continue;
-    r.bic[k] = n * std::log(std::max(1e-12, Sqr(log_rms[k]))) + r.parameters[k] * std::log(std::max(1, n));
+    double rss = 0;
+    for (int q : bic_dots) {
+      const double model = predict(k, q) - slice.rho_d;
+      rss += model > 0 ? Sqr(std::log((slice.value[q] - slice.rho_d) / model)) : 100.0;
+    }
+    r.bic[k] = n * std::log(std::max(1e-12, rss / std::max(1, n))) + r.parameters[k] * std::log(std::max(1, n));
     if (r.bic[k] < best_bic) {
       best_bic = r.bic[k];
       r.chosen_by_bic = k;
@@ -187,6 +205,7 @@ int ChooseLadderRung(const std::vector<const LadderResult*>& group, double signi
   // Per-dot squared errors relative to their point's signal, pooled over the group; and the
   // group's BIC per rung. A rung counts only where it was fitted and scored on every point.
   std::vector<std::vector<double>> pooled(kNumLadderRungs);
+  std::vector<double> noise;
   std::array<double, kNumLadderRungs> bic{{0, 0, 0}};
   std::array<bool, kNumLadderRungs> available{{true, true, true}};
   int points = 0;
@@ -198,6 +217,7 @@ int ChooseLadderRung(const std::vector<const LadderResult*>& group, double signi
       bic[k] += r->bic[k];
       for (double e : r->squared_errors[k]) pooled[k].push_back(e / r->signal);
     }
+    for (double v : r->noise_variances) noise.push_back(v / r->signal);
   }
   if (points == 0) return -1;
   if (criterion == LadderCriterion::kBic) {
@@ -210,7 +230,7 @@ int ChooseLadderRung(const std::vector<const LadderResult*>& group, double signi
   for (int k = 0; k < kNumLadderRungs; ++k) {
     if (!available[k]) pooled[k].clear();
   }
-  return SimplestRungWithinNoise(pooled, significance_sigmas);
+  return SimplestRungWithinNoise(pooled, significance_sigmas, noise);
 }
 
 namespace {

@@ -13,11 +13,12 @@
 // (a smooth slab only attenuates).
 // Each rung is fitted to the training dots and scored on the held-out dots (in-lobe relative
 // RMS, HeldOutRelativeRms). The chosen rung is the simplest whose held-out error is within noise
-// of the best: a paired comparison over the same held-out dots, where rung r is kept unless its
-// mean extra squared error exceeds significance_sigmas standard errors of the per-dot
-// differences. The noise floor e_noise (the held-out error measurement noise alone would give,
-// sqrt(sum sigma^2 / sum meas^2)) is reported. BIC on the training log residuals
-// (n ln(RSS / n) + k ln n) is the documented alternative. rho_d (Eq. 14) is common to all rungs.
+// of the best: over the same held-out dots, rung r is kept unless its mean extra squared error
+// exceeds the dots' mean measurement variance plus significance_sigmas standard errors of the
+// per-dot differences (fit/ladder_choice.h). The noise floor e_noise (the held-out error measurement noise alone would give,
+// sqrt(sum sigma^2 / sum meas^2)) is reported. BIC on the training log residuals of the lobe's
+// dots, the same dots for every rung (n ln(RSS / n) + k ln n), is the documented alternative.
+// rho_d (Eq. 14) is common to all rungs.
 #pragma once
 
 #include <array>
@@ -70,6 +71,7 @@ struct LadderResult {
   // Per rung, the squared prediction error of every scored dot (same dots for all rungs), and
   // the sum of the squared measurements they are relative to: what ChooseLadderRung pools.
   std::array<std::vector<double>, kNumLadderRungs> squared_errors;
+  std::vector<double> noise_variances;  // sigma^2 of the same dots (HDR variance; 0 where unknown).
   double signal = 0;
   SingleInterfaceFit single;
   AnalyticDmfFit analytic;
@@ -77,6 +79,16 @@ struct LadderResult {
   // Issue #8 rung number of the choice: 0 (attenuator), 3, 4, 5; -1 when nothing could be told.
   int chosen_rung() const { return specular ? 0 : chosen >= 0 ? kLadderRungIds[chosen] : -1; }
 };
+
+// The point-fit options of rungs 3 and 4: only training dots in the lobe (above lobe_fraction
+// of the peak, where the held-out dots are scored) enter their Eq. 15 log residuals. An analytic
+// single-refraction lobe cannot follow the far tails of a real slab (light that bounced inside
+// it, brighter than the single-refraction model by 1.2-4x below 5 % of the peak on the simulated
+// GGX 0.3 slab), and in log space those tails weigh as much as the lobe: fitted on every dot
+// above 2 % of the peak, rung 3 on that slab took k_s 1.15 for 1.0 and predicted the held-out
+// lobe 2x worse than its own true model. Rung 5 keeps Dai's objective (its tabulated D can follow
+// the tails). Falls back to options.point where the lobe holds fewer than min_measurements dots.
+DmfPointFitOptions AnalyticRungOptions(const LadderOptions& options);
 
 // The slice must hold held-out dots (train == 0); `grid` has options.point.ndf_resolution.
 // `chosen` is the choice from this point's dots alone (ChooseLadderRung over one point).

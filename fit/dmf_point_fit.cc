@@ -276,6 +276,8 @@ bool DmfPointFitOptions::Check(std::string* error) const {
   else if (min_core_measurements < 1) e << "min_core_measurements must be >= 1, got " << min_core_measurements;
   else if (!(min_measured_ndf_fraction >= 0 && min_measured_ndf_fraction <= 1))
     e << "min_measured_ndf_fraction must be in [0, 1], got " << min_measured_ndf_fraction;
+  else if (!(max_edge_fraction > 0 && max_edge_fraction <= 1))
+    e << "max_edge_fraction must be in (0, 1], got " << max_edge_fraction;
   else if (!(max_transmittance > 0)) e << "max_transmittance must be > 0, got " << max_transmittance;
   else if (!(max_k_s > 0)) e << "max_k_s must be > 0, got " << max_k_s;
   *error = e.str();
@@ -338,6 +340,17 @@ std::vector<int> UsableTrainingDots(const DmfSlice& slice, const DmfPointFitOpti
     if (v > options.noise_sigmas * sigma && v > options.min_relative_value * peak) usable.push_back(q);
   }
   return usable;
+}
+
+double LobeFractionAtEdge(const DmfSlice& slice) {
+  if (static_cast<int>(slice.edge.size()) != slice.num_dots()) return 0;
+  const double peak = TrainingPeak(slice);
+  if (!(peak > 0)) return 0;
+  double edge = 0;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (slice.train[q] && slice.edge[q]) edge = std::max(edge, slice.value[q] - slice.rho_d);
+  }
+  return edge / peak;
 }
 
 DmfStatus PrecheckSlice(const DmfSlice& slice, const DmfPointFitOptions& options) {
@@ -448,7 +461,8 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   fit.transmittance = DirectionalTransmittance(fit, grid, options.eta, slice.o);
   if (!converged) {
     fit.status = DmfStatus::kNotConverged;
-  } else if (fit.measured_ndf_fraction < options.min_measured_ndf_fraction) {
+  } else if (fit.measured_ndf_fraction < options.min_measured_ndf_fraction ||
+             LobeFractionAtEdge(slice) > options.max_edge_fraction) {
     fit.status = DmfStatus::kUndersampled;
   } else if (options.Unphysical(fit.transmittance, fit.k_s)) {
     fit.status = DmfStatus::kUnphysical;

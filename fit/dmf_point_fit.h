@@ -41,6 +41,7 @@ struct DmfSlice {
   std::vector<double> sigma;                      // Its standard deviation [1/sr] (0: unknown).
   std::vector<double> solid_angle;                // Solid angle of dot q's grid cell seen from x [sr].
   std::vector<uint8_t> train;                     // 1: used by the fit; 0: held out.
+  std::vector<uint8_t> edge;                      // 1: dot on the border of the dot grid (empty: unknown).
   double rho_d = 0;                               // Diffuse term of Eq. 13 [1/sr] (Eq. 14).
   int num_dots() const { return static_cast<int>(i.size()); }
 };
@@ -57,7 +58,9 @@ enum class DmfStatus : uint8_t {
   // Less than min_measured_ndf_fraction of the fitted NDF's projected mass lies in cells a
   // measurement constrains: the rest is the Eq. 17 smoothness filling gaps between sparse dots
   // or extrapolating a lobe wider than the monitor, so k_s (the NDF's integral) and the tails
-  // are not measured. The fit is kept; it predicts the dots it saw.
+  // are not measured. Also when the lobe at the border dots of the grid is still above
+  // max_edge_fraction of its peak (it runs past the monitor). The fit is kept; it predicts the
+  // dots it saw.
   kUndersampled = 7,
   // The fitted model transmits more than the light it receives (DmfPointFit::transmittance >
   // max_transmittance), or k_s > max_k_s: the normalised NDF put its mass at half vectors that
@@ -92,6 +95,9 @@ struct DmfPointFitOptions {
   // Below this measured share of the fitted NDF (DmfPointFit::measured_ndf_fraction): status
   // kUndersampled (docs/stability.md has the measured boundary).
   double min_measured_ndf_fraction = 0.5;
+  // A lobe still above this fraction of its peak at the border of the dot grid runs past the
+  // monitor: the mass of D beyond it, and with it k_s, is extrapolated (status kUndersampled).
+  double max_edge_fraction = 0.5;
   // Above this directional transmittance: status kUnphysical. A non-absorbing slab transmits at
   // most 1; the margin covers noise and the Eq. 14 rho_d taken from the lobe's floor.
   double max_transmittance = 1.3;
@@ -136,6 +142,9 @@ double EstimateDiffuse(const DmfSlice& slice, int nx, int ny, double fraction = 
 
 // Largest R - rho_d over the training dots.
 double TrainingPeak(const DmfSlice& slice);
+// Largest R - rho_d of the training dots on the border of the dot grid (the monitor's outermost
+// directions) over the training peak; 0 when the slice does not mark its border dots.
+double LobeFractionAtEdge(const DmfSlice& slice);
 // Training dots whose R - rho_d can enter the logarithms of Eqs. 15-16: above
 // min_relative_value of the training peak and noise_sigmas standard deviations.
 std::vector<int> UsableTrainingDots(const DmfSlice& slice, const DmfPointFitOptions& options);

@@ -1,11 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "fit/ladder_choice.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace thinslab {
 
-int SimplestRungWithinNoise(const std::vector<std::vector<double>>& squared_errors, double significance_sigmas) {
+int SimplestRungWithinNoise(const std::vector<std::vector<double>>& squared_errors, double significance_sigmas,
+                            const std::vector<double>& noise_variances) {
   const int rungs = static_cast<int>(squared_errors.size());
   int best = -1;
   double best_sum = 1e300;
@@ -21,6 +23,11 @@ int SimplestRungWithinNoise(const std::vector<std::vector<double>>& squared_erro
   if (best < 0) return -1;
   const std::vector<double>& reference = squared_errors[best];
   const int m = static_cast<int>(reference.size());
+  double noise = 0;
+  if (static_cast<int>(noise_variances.size()) == m) {
+    for (double v : noise_variances) noise += v;
+    noise /= std::max(1, m);
+  }
   for (int k = 0; k < rungs; ++k) {
     if (squared_errors[k].empty()) continue;
     if (k == best) return k;
@@ -34,7 +41,7 @@ int SimplestRungWithinNoise(const std::vector<std::vector<double>>& squared_erro
       var += d * d;
     }
     const double standard_error = m > 1 ? std::sqrt(var / (m - 1) / m) : 0;
-    if (mean <= significance_sigmas * standard_error) return k;
+    if (mean <= noise + significance_sigmas * standard_error) return k;
   }
   return best;
 }

@@ -18,6 +18,18 @@ TEST(SimplestRungWithinNoise, KeepsTheSimplestRungWhoseExcessIsWithinNoise) {
   EXPECT_EQ(SimplestRungWithinNoise({noisy_a, shifted}, 2.0), 1);
 }
 
+TEST(SimplestRungWithinNoise, AnExcessBelowTheMeasurementNoiseIsWithinNoiseHoweverLargeThePool) {
+  // 10000 measurements: rung 0 misses each by 0.01 more than rung 1, with no scatter, so the
+  // paired test alone resolves it; the measurements' own variance is 0.02 per measurement.
+  const std::vector<double> best(10000, 0.03), simpler(10000, 0.04);
+  EXPECT_EQ(SimplestRungWithinNoise({simpler, best}, 2.0), 1);
+  EXPECT_EQ(SimplestRungWithinNoise({simpler, best}, 2.0, std::vector<double>(10000, 0.02)), 0);
+  // An excess above the noise still takes the better rung.
+  EXPECT_EQ(SimplestRungWithinNoise({simpler, best}, 2.0, std::vector<double>(10000, 0.005)), 1);
+  // Variances that do not pair with the errors are ignored.
+  EXPECT_EQ(SimplestRungWithinNoise({simpler, best}, 2.0, std::vector<double>(3, 1.0)), 1);
+}
+
 TEST(SimplestRungWithinNoise, SkipsUnavailableRungsAndReportsNone) {
   EXPECT_EQ(SimplestRungWithinNoise({{}, {5, 5, 5}, {1, 1, 1}}, 2.0), 2);
   EXPECT_EQ(SimplestRungWithinNoise({{}, {}}, 2.0), -1);

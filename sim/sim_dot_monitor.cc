@@ -10,6 +10,7 @@
 #include "drivers/pattern_id.h"
 #include "sim/sim_board_camera.h"
 #include "sim/sim_chessboard.h"
+#include "sim/screen_footprint.h"
 
 namespace thinslab {
 
@@ -283,6 +284,18 @@ void SimDotMonitor::BuildScreenMap() const {
   }
 }
 
+double SimDotMonitor::DirectRadiance(const double* screen_map_entry, int s, int a, int b) const {
+  // Sub-pixel (a, b) of s x s: its footprint on the screen under the pixel's affine map. Each
+  // monitor pixel is a uniform emitter (the pixelated display the real window draws), the bezel
+  // is black, and the footprint's mean radiance is integrated exactly (sim/screen_footprint.h).
+  const double* e = screen_map_entry;
+  const double du = (b + 0.5) / s - 0.5, dv = (a + 0.5) / s - 0.5;
+  const Eigen::Vector2d centre(e[0] + du * e[2] + dv * e[4], e[1] + du * e[3] + dv * e[5]);
+  const ScreenFootprintMean mean =
+      MeanOverFootprint(levels_, centre, Eigen::Vector2d(e[2], e[3]) / s, Eigen::Vector2d(e[4], e[5]) / s);
+  return options_.black_radiance * mean.inside + options_.dot_radiance * mean.level;
+}
+
 Image SimDotMonitor::RenderElectrons() const {
   if (sample_in_path()) return RenderElectronsThroughSample();
   const SimDotMonitorOptions& o = options_;
@@ -302,13 +315,7 @@ Image SimDotMonitor::RenderElectrons() const {
       if (e[0] < -1e29) continue;
       double sum = 0;
       for (int a = 0; a < s; ++a) {
-        for (int b = 0; b < s; ++b) {
-          const double du = (b + 0.5) / s - 0.5, dv = (a + 0.5) / s - 0.5;
-          const double mx = e[0] + du * e[2] + dv * e[4], my = e[1] + du * e[3] + dv * e[5];
-          if (mx < 0 || my < 0 || mx >= o.monitor_width_px || my >= o.monitor_height_px) continue;  // Black bezel.
-          // Each monitor pixel is a uniform emitter (the pixelated display the real window draws).
-          sum += o.black_radiance + o.dot_radiance * levels_.at(static_cast<int>(mx), static_cast<int>(my));
-        }
+        for (int b = 0; b < s; ++b) sum += DirectRadiance(e, s, a, b);
       }
       out.at(u, v) = static_cast<float>(sum / (s * s) * scale);
     }
@@ -392,6 +399,7 @@ void SimDotMonitor::BuildSampleMap() const {
         comp.weight = static_cast<float>(e.second.first) / ss;
         const Eigen::Vector2d xm2 = e.second.second / e.second.first;
         comp.x_in_sample = Eigen::Vector3d(xm2.x(), xm2.y(), 0);
+        comp.view = (eye - comp.x_in_sample).normalized();
         comp.black_level_radiance = 0;
         if (options_.black_radiance > 0) comp.black_level_radiance = ScatteredRadiance(comp, black);
         components_.push_back(comp);
@@ -413,7 +421,7 @@ double SimDotMonitor::ScatteredRadiance(const ScatterComponent& c, const std::ve
     const double r = std::sqrt(r2);
     const Eigen::Vector3d i = d / r;
     const double cos_i = std::abs(i.z()), cos_e = std::abs(emit_normal.dot(i));
-    sum += sample.Transmission(c.region, i) * q.radiance_area * cos_e * cos_i / r2;
+    sum += sample.Transmission(c.region, i, c.view) * q.radiance_area * cos_e * cos_i / r2;
   }
   return sum;
 }
@@ -449,10 +457,7 @@ Image SimDotMonitor::RenderElectronsThroughSample() const {
         for (int b = 0; b < s; ++b) {
           const float wk = w[a * s + b];
           if (wk <= 0) continue;
-          const double du = (b + 0.5) / s - 0.5, dv = (a + 0.5) / s - 0.5;
-          const double mx = e[0] + du * e[2] + dv * e[4], my = e[1] + du * e[3] + dv * e[5];
-          if (mx < 0 || my < 0 || mx >= o.monitor_width_px || my >= o.monitor_height_px) continue;  // Black bezel.
-          sum += wk * (o.black_radiance + o.dot_radiance * levels_.at(static_cast<int>(mx), static_cast<int>(my)));
+          sum += wk * DirectRadiance(e, s, a, b);
         }
       }
       out.at(u, v) = static_cast<float>(sum / ss * scale);

@@ -173,11 +173,15 @@ class SimDotMonitor : public Projector {
     int region;                    // Region index.
     float weight;                  // Fraction of the pixel's sub-samples in the region.
     Eigen::Vector3d x_in_sample;   // Mean sample point of those sub-samples (z = 0).
+    Eigen::Vector3d view;          // Unit direction from x_in_sample to the camera centre.
     double black_level_radiance;   // Radiance from the screen's black level (per unit black_radiance).
   };
   void BuildSampleMap() const;
   Image RenderElectronsThroughSample() const;
   double ScatteredRadiance(const ScatterComponent& c, const std::vector<PointSource>& sources) const;
+  // Mean radiance the screen sends into sub-pixel (a, b) of s x s of the pixel whose screen_map_
+  // entry (6 doubles) is given.
+  double DirectRadiance(const double* screen_map_entry, int s, int a, int b) const;
   std::vector<PointSource> BlockSources(const Image* levels, double radiance) const;
   mutable const SlabSample* sample_map_for_ = nullptr;
   mutable std::vector<float> direct_weights_;      // width * height * s * s.

@@ -237,6 +237,18 @@ double SlabSample::Transmission(int idx, const Eigen::Vector3d& i_sample) const 
   return m.rho_d + m.k_s * Btdf(idx, i_sample);
 }
 
+double SlabSample::Btdf(int idx, const Eigen::Vector3d& i_sample, const Eigen::Vector3d& o_sample) const {
+  const SlabBtdfTable* t = tables_[idx].get();
+  if (!t) return 0.0;
+  const Eigen::Vector3d& o_c = view_directions_[idx];
+  return t->Eval(Eigen::Vector3d(i_sample.x() + o_sample.x() - o_c.x(), i_sample.y() + o_sample.y() - o_c.y(), i_sample.z()));
+}
+
+double SlabSample::Transmission(int idx, const Eigen::Vector3d& i_sample, const Eigen::Vector3d& o_sample) const {
+  const SlabMaterial& m = options_.regions[idx].material;
+  return m.rho_d + m.k_s * Btdf(idx, i_sample, o_sample);
+}
+
 double SlabSample::FlatSlabTransmittance(double cos_theta, double eta) {
   const double f = FresnelDielectric(std::abs(cos_theta), eta);
   return (1 - f) / (1 + f);

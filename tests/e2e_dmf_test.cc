@@ -119,8 +119,9 @@ class DmfEndToEnd : public ::testing::Test {
         const Eigen::Vector3d x = slices_->PointPosition(p);
         const int region = sample.RegionIndexAt(x.head<2>());
         DmfSlice slice = slices_->Slice(p);
+        const Eigen::Vector3d view = (slices_->camera_centre - x).normalized();
         for (int q = 0; q < slices_->num_dots(); ++q) {
-          slice.value[q] = sample.Transmission(region, (slices_->dot_positions[q] - x).normalized());
+          slice.value[q] = sample.Transmission(region, (slices_->dot_positions[q] - x).normalized(), view);
         }
         rho_d.push_back(EstimateDiffuse(slice, slices_->dots_nx, slices_->dots_ny));
       }
@@ -176,21 +177,21 @@ TEST_F(DmfEndToEnd, UnclusteredFitRecoversRegions) {
   // (ggx_aniso_top, the worst: its wide 0.4 axis has tails beyond the dots, kept at the earlier
   // bound 0.4, 16 % above measured).
   const std::map<std::string, double> max_ndf_error = {
-      {"ggx_top", 0.38},        // Measured 0.298.
-      {"ggx_bottom", 0.35},     // Measured 0.271.
-      {"beckmann_top", 0.24},   // Measured 0.185.
-      {"ggx_aniso_top", 0.40},  // Measured 0.344.
+      {"ggx_top", 0.34},        // Measured 0.265 (0.298 before the rig's L_q fix of 2026-12-03).
+      {"ggx_bottom", 0.29},     // Measured 0.224 (0.271).
+      {"beckmann_top", 0.15},   // Measured 0.114 (0.185).
+      {"ggx_aniso_top", 0.40},  // Measured 0.350 (0.344).
   };
   for (const auto& [name, bound] : max_ndf_error) EXPECT_LT(Median(stats.at(name).ndf_error), bound) << name;
   // Diffuse term (Eq. 14). Where the slab has one (rho_d 0.05 /sr; every dot sees it, so the
-  // minimum of Eq. 14 is that floor) it is recovered within 0.015 /sr (measured 0.0417; Eq. 14
+  // minimum of Eq. 14 is that floor) it is recovered within 0.015 /sr (measured 0.0469; Eq. 14
   // on the noiseless true R gives 0.0500: the minimum over noisy 3 x 3 means is biased low).
   EXPECT_NEAR(accuracy.at("diffuse").median_rho_d, accuracy.at("diffuse").true_rho_d, 0.015);
   // Without a diffuse term Eq. 14 does not give 0 but the lobe tails' level: measured
-  // 0.025-0.070 /sr (ggx_bottom the highest), under 1 % of the lobe peaks (6-11 /sr), as high as
+  // 0.024-0.068 /sr (ggx_bottom the highest), under 1 % of the lobe peaks (6-11 /sr), as high as
   // the diffuse region's true 0.05, so rho_d cannot tell a diffuse term of that size from tails.
-  // Asserted: below 0.09 /sr (measured max 0.0701), and within 0.006 /sr of Eq. 14 on the true R
-  // (measured differences 0.0009-0.0043, the largest beckmann_both), i.e. the floor is Eq. 14's,
+  // Asserted: below 0.09 /sr (measured max 0.0682), and within 0.006 /sr of Eq. 14 on the true R
+  // (measured differences 0.0000-0.0053, the largest ggx_mixed), i.e. the floor is Eq. 14's,
   // not noise or calibration.
   for (const char* name :
        {"ggx_top", "ggx_bottom", "ggx_both", "beckmann_top", "beckmann_both", "ggx_aniso_top", "ggx_mixed"}) {
@@ -203,24 +204,28 @@ TEST_F(DmfEndToEnd, UnclusteredFitRecoversRegions) {
   // ratios below; docs/models/dual_microfacet_fit.md: 0.75-1.3). The light that the fitted lobe
   // does not model (the halo of internal reflections, the Laplacian-extrapolated tails) is what
   // moves it. Not asserted on the two-sided regions, where k_s absorbs the mismatch of the Eq. 11
-  // interpolation (measured 1.446 ggx_both, 1.273 beckmann_both, 0.816 ggx_mixed).
+  // interpolation (measured 1.058 ggx_both, 1.185 beckmann_both, 0.843 ggx_mixed).
   for (const char* name : {
-           "ggx_top",        // Measured k_s 0.811 (true 1).
-           "ggx_bottom",     // 0.815 (true 1).
-           "beckmann_top",   // 1.029 (true 1).
-           "ggx_aniso_top",  // 0.996 (true 1).
-           "diffuse",        // 0.731 (true 0.8): ratio 0.914.
+           "ggx_top",        // Measured k_s 0.815 (true 1).
+           "ggx_bottom",     // 0.801 (true 1).
+           "beckmann_top",   // 1.016 (true 1).
+           "ggx_aniso_top",  // 1.022 (true 1).
+           "diffuse",        // 0.713 (true 0.8): ratio 0.891.
        }) {
     const DmfRegionAccuracy& a = accuracy.at(name);
     EXPECT_GE(a.median_k_s, 0.7 * a.true_k_s) << name;
     EXPECT_LE(a.median_k_s, 1.3 * a.true_k_s) << name;
   }
-  for (const char* name : {"ggx_top", "ggx_bottom", "ggx_both", "beckmann_top", "beckmann_both", "ggx_aniso_top",
-                           "diffuse", "ggx_mixed"}) {
-    EXPECT_LT(Median(stats.at(name).held_out), 0.25) << name;
+  // Held-out in-lobe error: measured 0.028-0.066 on the isotropic regions, 0.151 on the
+  // anisotropic one (whose 0.4 axis has tails beyond the dots). Before the rig's L_q fix of
+  // 2026-12-03 every region read 0.09-0.22 (a 12 % RMS per-dot error of the simulated rig).
+  for (const char* name : {"ggx_top", "ggx_bottom", "ggx_both", "beckmann_top", "beckmann_both", "diffuse", "ggx_mixed"}) {
+    EXPECT_LT(Median(stats.at(name).held_out), 0.09) << name;
   }
+  EXPECT_LT(Median(stats.at("ggx_aniso_top").held_out), 0.2);
   // Dai Fig. 5: where both faces are equally rough the dual-microfacet model predicts held-out
-  // dots better than a single rough GGX interface. (Where one face dominates, ggx_mixed, the
+  // dots better than a single rough GGX interface (measured ratios 0.21 ggx_both, 0.08
+  // beckmann_both). (Where one face dominates, ggx_mixed, the
   // single interface is as good: docs/models/dual_microfacet_fit.md has the figures.)
   for (const char* name : {"ggx_both", "beckmann_both"}) {
     EXPECT_LT(Median(stats.at(name).held_out), 0.8 * Median(stats.at(name).held_out_ggx)) << name;
@@ -306,15 +311,15 @@ TEST_F(DmfEndToEnd, ModelLadderFitsNoMoreThanTheRegionNeeds) {
       EXPECT_LE(beckmann_single, 2) << name;
     }
   }
-  // Smooth: an attenuator. Anisotropic: only the tabulated NDF. Isotropic GGX regions: a small
-  // model for most (measured: ggx_top and ggx_mixed 3, ggx_both 4; ggx_bottom 5, where the
-  // tabulated NDF predicts the held-out dots 25 % better than the single interface of the true
-  // family: docs/models/model_ladder.md).
+  // Smooth: an attenuator. Anisotropic: only the tabulated NDF. Isotropic regions: a small model
+  // (measured: ggx_bottom 3; ggx_top, ggx_both, ggx_mixed, beckmann_top, diffuse 4;
+  // beckmann_both 5, where rung 4 predicts the held-out dots at 0.073 against 0.030:
+  // docs/models/model_ladder.md).
   EXPECT_EQ(chosen["smooth"], 0);
   EXPECT_EQ(chosen["ggx_aniso_top"], 5);
-  int small = 0;
-  for (const char* name : {"ggx_top", "ggx_bottom", "ggx_both", "ggx_mixed"}) small += chosen[name] == 3 || chosen[name] == 4;
-  EXPECT_GE(small, 3);
+  for (const char* name : {"ggx_top", "ggx_bottom", "ggx_both", "ggx_mixed", "beckmann_top", "diffuse"}) {
+    EXPECT_TRUE(chosen[name] == 3 || chosen[name] == 4) << name << " chose rung " << chosen[name];
+  }
 
   // BIC (the documented alternative) on the same points: 716 NDF cells cost 716 ln n, so it never
   // takes the tabulated NDF here, not even where the held-out dots need it (ggx_aniso_top).
@@ -348,7 +353,7 @@ TEST_F(DmfEndToEnd, ModelLadderFitsNoMoreThanTheRegionNeeds) {
       if (l.specular || l.held_out[index] < 0 || l.tabulated.log_ndf.empty()) continue;
       const DmfSlice slice = slices_->Slice(p);
       DmfPointFit fit = l.tabulated;
-      ASSERT_TRUE(ReplaceWithLadderRung(l, index, slice, grid, options.point, &fit)) << name;
+      ASSERT_TRUE(ReplaceWithLadderRung(l, index, slice, grid, AnalyticRungOptions(options), &fit)) << name;
       const double held_out = HeldOutRelativeRms(slice, options.lobe_fraction, [&](const Eigen::Vector3d& i, const Eigen::Vector3d& o) {
         return PredictDualMicrofacet(fit, grid, options.point.eta, i, o);
       });
@@ -404,11 +409,14 @@ TEST_F(DmfEndToEnd, CliLadderChoosesPerRegionAndTheMapsHoldTheChoice) {
     for (const auto& [rung, n] : counts) std::printf(" %d (%d)", rung, n);
     std::printf("\n");
   }
+  // Measured: smooth 0; ggx_top 3 (15; 10 on 4), ggx_bottom 3 (20), diffuse 3 (16; 4 on 4),
+  // ggx_both 4 (21; 4 on 5), beckmann_top 4 (18; 2 on 3), ggx_mixed 4 (25); beckmann_both and
+  // ggx_aniso_top 5.
   EXPECT_EQ(chosen["smooth"], 0);
   EXPECT_EQ(chosen["ggx_aniso_top"], 5);
-  int small = 0;
-  for (const char* name : {"ggx_top", "ggx_bottom", "ggx_both", "ggx_mixed"}) small += chosen[name] == 3 || chosen[name] == 4;
-  EXPECT_GE(small, 3);
+  for (const char* name : {"ggx_top", "ggx_bottom", "ggx_both", "ggx_mixed", "beckmann_top", "diffuse"}) {
+    EXPECT_TRUE(chosen[name] == 3 || chosen[name] == 4) << name << " chose rung " << chosen[name];
+  }
   for (float v : maps.data()) ASSERT_TRUE(std::isfinite(v));
 }
 
@@ -465,13 +473,17 @@ TEST_F(DmfEndToEnd, ClusteredFitAtDefaultsStaysCloseToUnclustered) {
               maps.num_fitted, clustered.size(), Median(clustered), Median(unclustered), quantile(clustered, 0.9),
               quantile(unclustered, 0.9), maps.timings.total_s, unclustered_->timings.total_s);
   EXPECT_EQ(maps.num_fitted, options.clustering.min_representatives);
-  // Eq. 20 interpolation from the 4 nearest representatives costs little accuracy: median
-  // held-out error within 1.15 x the unclustered one (measured 0.182 vs 0.170, 1.07 x), the
-  // 90th percentile within 1.3 x (measured 0.270 vs 0.233, 1.16 x). The median alone misses
-  // wrong weights at points whose nearest representatives share their material (uniform
-  // weights: median 1.14 x, 90th percentile 1.38 x); the tail catches them.
-  EXPECT_LE(Median(clustered), 1.15 * Median(unclustered));
-  EXPECT_LE(quantile(clustered, 0.9), 1.3 * quantile(unclustered, 0.9));
+  // Eq. 20 interpolation from the 4 nearest representatives, on slice shapes aligned in
+  // u = i_xy + o_xy (fit/dmf_slice_shape.h): measured median held-out error 0.060 vs 0.047
+  // unclustered (1.28 x), 90th percentile 0.138 vs 0.099 (1.39 x). With dot-indexed shapes it
+  // was 0.071 (1.51 x) and 0.186 (1.88 x): 136 of 230 interpolated points had a representative
+  // of another region among their neighbours (now 139 of 243, with a mean weight of 0.16 instead
+  // of 0.24). Until 2026-12-03 the simulated rig's per-dot L_q was 12 % RMS wrong
+  // (sim/screen_footprint.h); that error (held-out 0.17 everywhere) hid the interpolation's, and
+  // these bounds were 1.15 x and 1.3 x on it. The interpolation's remaining cost is a known gap
+  // (docs/known_gaps.md).
+  EXPECT_LE(Median(clustered), 1.45 * Median(unclustered));
+  EXPECT_LE(quantile(clustered, 0.9), 1.6 * quantile(unclustered, 0.9));
   const Image image = maps.ToImage();
   for (float v : image.data()) ASSERT_TRUE(std::isfinite(v));
 }
