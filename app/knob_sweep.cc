@@ -170,8 +170,12 @@ Status SweepDmfKnobs(const DmfSliceSet& slices, const std::vector<DmfTruthRegion
   }
   if (options.model_rungs) {
     const DmfPointFitOptions& po = d.point;
+    // Rungs 3 and 4 as the ladder fits them: on the lobe's training dots.
+    LadderOptions ladder;
+    ladder.point = po;
+    const DmfPointFitOptions rung_options = AnalyticRungOptions(ladder);
     SweepPoint single{"dmf", "model_rung", "3 single interface"};
-    ScoreRung(slices, po, d.num_threads, [&](const DmfSlice& s) { return FitSingleInterface(s, po); },
+    ScoreRung(slices, po, d.num_threads, [&](const DmfSlice& s) { return FitSingleInterface(s, rung_options); },
               [&](const SingleInterfaceFit& f, const Eigen::Vector3d& i, const Eigen::Vector3d& o) {
                 return PredictSingleInterface(f, po.eta, i, o);
               },
@@ -179,7 +183,7 @@ Status SweepDmfKnobs(const DmfSliceSet& slices, const std::vector<DmfTruthRegion
     single.parameters = 2 * slices.num_points();
     points->push_back(single);
     SweepPoint analytic{"dmf", "model_rung", "4 analytic DMF"};
-    ScoreRung(slices, po, d.num_threads, [&](const DmfSlice& s) { return FitAnalyticDualMicrofacet(s, po); },
+    ScoreRung(slices, po, d.num_threads, [&](const DmfSlice& s) { return FitAnalyticDualMicrofacet(s, rung_options); },
               [&](const AnalyticDmfFit& f, const Eigen::Vector3d& i, const Eigen::Vector3d& o) {
                 return PredictAnalyticDualMicrofacet(f, po.eta, i, o);
               },

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/math.h"
+
 namespace thinslab {
 namespace {
 
@@ -41,10 +43,15 @@ bool AlignedSliceShape(const DmfSlice& slice, const SliceShapeGrid& grid, float*
     const Eigen::Vector2d g = (DeviationFromStraightThrough(slice.i[q], slice.o) - grid.min_u) / grid.spacing;
     const int b0 = static_cast<int>(std::ceil(g.x() - 2)), b1 = static_cast<int>(std::floor(g.x() + 2));
     const int a0 = static_cast<int>(std::ceil(g.y() - 2)), a1 = static_cast<int>(std::floor(g.y() + 2));
+    // The Gaussian is separable: one exponential per node row and column within 2 sigma.
+    double wx[5], wy[5];
+    for (int k = 0; k < 5; ++k) {
+      wx[k] = std::exp(-Sqr((b0 + k - g.x()) * grid.spacing) * inv_two_sigma2);
+      wy[k] = std::exp(-Sqr((a0 + k - g.y()) * grid.spacing) * inv_two_sigma2);
+    }
     for (int a = std::max(0, a0); a <= std::min(n - 1, a1); ++a) {
       for (int b = std::max(0, b0); b <= std::min(n - 1, b1); ++b) {
-        const double d2 = (Eigen::Vector2d(b, a) - g).squaredNorm() * grid.spacing * grid.spacing;
-        const double w = std::exp(-d2 * inv_two_sigma2);
+        const double w = wy[a - a0] * wx[b - b0];
         value[a * n + b] += w * v;
         weight[a * n + b] += w;
       }
