@@ -234,8 +234,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       // An interpolated NDF is as measured as its representatives' (weighted).
       if (used == 0) {
         f.status = DmfStatus::kNoLobe;
-      } else if (f.measured_ndf_fraction < options.point.min_measured_ndf_fraction ||
-                 LobeFractionAtEdge(slice) > options.point.max_edge_fraction) {
+      } else if (options.point.Undersampled(f.measured_ndf_fraction, slice)) {
         f.status = DmfStatus::kUndersampled;
       } else if (options.point.Unphysical(f.transmittance, f.k_s)) {
         f.status = DmfStatus::kUnphysical;

@@ -342,6 +342,10 @@ std::vector<int> UsableTrainingDots(const DmfSlice& slice, const DmfPointFitOpti
   return usable;
 }
 
+bool DmfPointFitOptions::Undersampled(double measured_ndf_fraction, const DmfSlice& slice) const {
+  return measured_ndf_fraction < min_measured_ndf_fraction || LobeFractionAtEdge(slice) > max_edge_fraction;
+}
+
 double LobeFractionAtEdge(const DmfSlice& slice) {
   if (static_cast<int>(slice.edge.size()) != slice.num_dots()) return 0;
   const double peak = TrainingPeak(slice);
@@ -461,8 +465,7 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   fit.transmittance = DirectionalTransmittance(fit, grid, options.eta, slice.o);
   if (!converged) {
     fit.status = DmfStatus::kNotConverged;
-  } else if (fit.measured_ndf_fraction < options.min_measured_ndf_fraction ||
-             LobeFractionAtEdge(slice) > options.max_edge_fraction) {
+  } else if (options.Undersampled(fit.measured_ndf_fraction, slice)) {
     fit.status = DmfStatus::kUndersampled;
   } else if (options.Unphysical(fit.transmittance, fit.k_s)) {
     fit.status = DmfStatus::kUnphysical;

@@ -108,6 +108,8 @@ struct DmfPointFitOptions {
   bool Check(std::string* error) const;
   // Status kUnphysical: transmits more than max_transmittance, or k_s above max_k_s.
   bool Unphysical(double transmittance, double k_s) const { return transmittance > max_transmittance || k_s > max_k_s; }
+  // Status kUndersampled: too little of the NDF measured, or the lobe runs past the monitor.
+  bool Undersampled(double measured_ndf_fraction, const DmfSlice& slice) const;
 };
 
 struct DmfPointFit {

@@ -228,13 +228,11 @@ const SlabMaterial* SlabSample::MaterialAt(const Eigen::Vector2d& x) const {
 }
 
 double SlabSample::Btdf(int idx, const Eigen::Vector3d& i_sample) const {
-  const SlabBtdfTable* t = tables_[idx].get();
-  return t ? t->Eval(i_sample) : 0.0;
+  return Btdf(idx, i_sample, view_directions_[idx]);
 }
 
 double SlabSample::Transmission(int idx, const Eigen::Vector3d& i_sample) const {
-  const SlabMaterial& m = options_.regions[idx].material;
-  return m.rho_d + m.k_s * Btdf(idx, i_sample);
+  return Transmission(idx, i_sample, view_directions_[idx]);
 }
 
 double SlabSample::Btdf(int idx, const Eigen::Vector3d& i_sample, const Eigen::Vector3d& o_sample) const {
