@@ -2,7 +2,9 @@
 #include "acquire/session_journal.h"
 
 #include <algorithm>
+#include <exception>
 #include <filesystem>
+#include <new>
 #include <regex>
 #include <sstream>
 
@@ -221,7 +223,16 @@ Status RunAcquisition(const AcquisitionRunOptions& options, const Session& heade
     return stop_reason;
   });
 
-  const Status status = script(&recording, &writer);
+  // An exception (memory exhausted, a library's) ends the session as failed, recorded in the
+  // manifest, like a device failure: never a session left "running" (issue #22).
+  Status status;
+  try {
+    status = script(&recording, &writer);
+  } catch (const std::bad_alloc&) {
+    status = Status::Error("out of memory while acquiring (frames of this camera size do not fit in memory)");
+  } catch (const std::exception& e) {
+    status = Status::Error(std::string("internal error while acquiring: ") + e.what());
+  }
 
   Session* s = writer.mutable_session();
   // Camera transport statistics (dropped buffers, resends, timeouts) at the end of the run.

@@ -69,6 +69,9 @@ int RunCalibGamma(int argc, char** argv) {
     std::cout << parser.Usage();
     return 0;
   }
+  const std::string response_input = DefaultResponsePath(session_dir, response_path);
+  if (status.ok()) status = ResolveCalibOutputFile(session_dir, "display_gamma.txt", {response_input}, &out);
+  if (status.ok()) status = CheckOutputFile(SummaryPath(out), {{session_dir, {"calib"}}, {response_input, {}}});
   if (!status.ok()) return Fail(status);
   Session session;
   CameraResponse response;
@@ -78,11 +81,6 @@ int RunCalibGamma(int argc, char** argv) {
   DisplayGammaFitSummary summary;
   status = FitDisplayGammaSession(session_dir, session, response_file.empty() ? nullptr : &response, options, &summary);
   if (!status.ok()) return Fail(status);
-  if (out.empty()) {
-    status = CreateDirectories(JoinPath(session_dir, "calib"));
-    if (!status.ok()) return Fail(status);
-    out = JoinPath(JoinPath(session_dir, "calib"), "display_gamma.txt");
-  }
   const std::string comment = "measured by thinslab " + std::string(THINSLAB_VERSION_STRING) + " (" +
                               THINSLAB_GIT_HASH + ") calib gamma from " + session_dir + "; " +
                               std::to_string(summary.num_levels) + " levels, fit residual rms " +

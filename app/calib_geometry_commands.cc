@@ -125,7 +125,7 @@ Status CalibCamera(const std::vector<std::string>& paths, const CameraCalibratio
     report << names[k] << " = " << Fmt("%.6g", c.distortion[k]) << " +- " << Fmt("%.3g", c.distortion_std[k]) << "\n";
   }
   report << "RMS reprojection error = " << Fmt("%.4f", c.rms_reprojection_px) << " px\n\nper view:\n";
-  csv << "view,detected,rms_px,max_px,error\n";
+  csv << "# thinslab calib camera: per-view reprojection\nview,detected,rms_px,max_px,error\n";
   for (const CalibrationViewReport& v : result->views) {
     if (v.detected) {
       report << "  " << v.name << ": rms " << Fmt("%.4f", v.rms_px) << " px, max " << Fmt("%.4f", v.max_px) << " px\n";
@@ -134,6 +134,11 @@ Status CalibCamera(const std::vector<std::string>& paths, const CameraCalibratio
       report << "  " << v.name << ": skipped: " << v.error << "\n";
       csv << v.name << ",0,,,\"" << v.error << "\"\n";
     }
+  }
+  std::vector<InputPath> inputs;
+  for (const std::string& p : paths) inputs.push_back({p, {}});
+  for (const std::string& file : {rig_path, JoinPath(out_dir, "camera_calibration.txt"), JoinPath(out_dir, "camera_views.csv")}) {
+    THINSLAB_RETURN_IF_ERROR(CheckOutputFile(file, inputs));
   }
   THINSLAB_RETURN_IF_ERROR(WriteRigCalibration(rig_path, rig));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out_dir, "camera_calibration.txt"), report.str()));
@@ -268,6 +273,9 @@ int RunCalibPose(int argc, char** argv) {
     out.pose.num_points = first.num_points;
     out.pose.rotation_std_rad = first.rotation_std_rad;
     out.pose.translation_std_m = first.translation_std_m;
+    for (const std::string& file : {out_rig, JoinPath(calib_dir, "pose_report.txt")}) {
+      THINSLAB_RETURN_IF_ERROR(CheckOutputFile(file, {{session_dir, {"calib"}}}));
+    }
     THINSLAB_RETURN_IF_ERROR(CreateDirectories(calib_dir));
     THINSLAB_RETURN_IF_ERROR(WriteRigCalibration(out_rig, out));
     const std::string text = std::string("thinslab calib pose: intrinsics from ") +
@@ -384,6 +392,7 @@ int RunCalibDots(int argc, char** argv) {
     m.dots = result.dots;
     int saturated = 0;
     std::ostringstream csv;
+    csv << "# thinslab calib dots: detected dots\n";
     csv << "dot_x_px,dot_y_px,detected,centroid_x_px,centroid_y_px,x_m,y_m,z_m,radiance_dn_per_us,saturated,residual_m\n";
     for (const DotRecord& d : result.dots) {
       saturated += d.saturated ? 1 : 0;
@@ -419,6 +428,9 @@ int RunCalibDots(int argc, char** argv) {
     }
     const std::string distance_warning =
         options.refine_distance ? "" : MonitorDistanceWarning(result.distance_error_m, result.distance_error_sigma_m);
+    for (const std::string& file : {out_rig, JoinPath(calib_dir, "dots.csv"), JoinPath(calib_dir, "dots_report.txt")}) {
+      THINSLAB_RETURN_IF_ERROR(CheckOutputFile(file, {{session_dir, {"calib"}}}));
+    }
     THINSLAB_RETURN_IF_ERROR(CreateDirectories(calib_dir));
     THINSLAB_RETURN_IF_ERROR(WriteRigCalibration(out_rig, out));
     THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(calib_dir, "dots.csv"), csv.str()));

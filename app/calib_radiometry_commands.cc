@@ -172,6 +172,7 @@ int RunCalibResponse(int argc, char** argv) {
     std::cout << parser.Usage();
     return 0;
   }
+  if (status.ok()) status = ResolveCalibOutputFile(session_dir, "response.json", {}, &out);
   if (!status.ok()) return Fail(status);
   if (method == "debevec") {
     options.method = ResponseMethod::kDebevec;
@@ -246,12 +247,6 @@ int RunCalibResponse(int argc, char** argv) {
   status = RecoverResponse(frames, options, &response, &summary).WithContext(session_dir + " (" + group.name + ")");
   if (!status.ok()) return Fail(status);
   response.camera_id = camera->id;
-  if (out.empty()) {
-    const std::string calib_dir = JoinPath(session_dir, "calib");
-    status = CreateDirectories(calib_dir);
-    if (!status.ok()) return Fail(status);
-    out = JoinPath(calib_dir, "response.json");
-  }
   status = WriteResponse(out, response);
   if (!status.ok()) return Fail(status);
   std::cout << "bracket '" << group.name << "': " << frames.size() << " exposures, " << group.frames.size()
@@ -297,6 +292,9 @@ int RunCalibHdr(int argc, char** argv) {
   if (exposures != "reported" && exposures != "measured") {
     return Fail(Status::Error("--exposures " + exposures + ": expected reported or measured"));
   }
+  if (!(read_noise_dn > 0 && read_noise_dn < 1e6)) {
+    return Fail(Status::Error("--read-noise-dn " + std::to_string(read_noise_dn) + ": must be in (0, 1e6) DN"));
+  }
   Session session;
   status = ReadCaptureForCommand(session_dir, allow_incomplete, &session);
   if (!status.ok()) return Fail(status);
@@ -319,7 +317,7 @@ int RunCalibHdr(int argc, char** argv) {
     if (!status.ok()) return Fail(status);
     out = JoinPath(JoinPath(session_dir, "calib"), "hdr");
   }
-  StagedDirectory staged(out);
+  StagedDirectory staged(out, "calib hdr", {{session_dir, {"calib"}}});
   status = staged.Init();
   if (!status.ok()) return Fail(status);
   const std::string options_ini = "# thinslab calib hdr\n" + parser.ToIni();
@@ -397,6 +395,7 @@ int RunCalibFlat(int argc, char** argv) {
     std::cout << parser.Usage();
     return 0;
   }
+  if (status.ok()) status = ResolveCalibOutputFile(session_dir, "flat_field.exr", {DefaultResponsePath(session_dir, response_path)}, &out);
   if (!status.ok()) return Fail(status);
   Session session;
   CameraResponse response;
@@ -414,11 +413,6 @@ int RunCalibFlat(int argc, char** argv) {
   flat.attributes()["median_dn_per_us"] = nlohmann::json(summary.median_dn_per_us).dump();
   flat.attributes()["smoothing_sigma_px"] = nlohmann::json(options.smoothing_sigma_px).dump();
   flat.attributes()["response"] = have_response ? response.method : "linear";
-  if (out.empty()) {
-    status = CreateDirectories(JoinPath(session_dir, "calib"));
-    if (!status.ok()) return Fail(status);
-    out = JoinPath(JoinPath(session_dir, "calib"), "flat_field.exr");
-  }
   status = WriteExr(out, flat);
   if (!status.ok()) return Fail(status);
   std::cout << summary.BriefReport() << "\nwrote " << out << "\n";

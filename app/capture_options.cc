@@ -1,13 +1,30 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "app/capture_options.h"
 
+#include <filesystem>
 #include <iostream>
 
 #include "app/option_parser.h"
 #include "core/file.h"
+#include "core/output_guard.h"
 #include "core/session_io.h"
 
 namespace thinslab {
+
+std::string DefaultResponsePath(const std::string& session_dir, const std::string& response_path) {
+  return response_path.empty() ? JoinPath(JoinPath(session_dir, "calib"), "response.json") : response_path;
+}
+
+Status ResolveCalibOutputFile(const std::string& session_dir, const std::string& default_name,
+                              const std::vector<std::string>& extra_inputs, std::string* out) {
+  const std::string calib_dir = JoinPath(session_dir, "calib");
+  if (out->empty()) *out = JoinPath(calib_dir, default_name);
+  std::vector<InputPath> inputs = {{session_dir, {"calib"}}};
+  for (const std::string& input : extra_inputs) inputs.push_back({input, {}});
+  THINSLAB_RETURN_IF_ERROR(CheckOutputFile(*out, inputs));
+  const std::string parent = std::filesystem::path(*out).parent_path().string();
+  return parent == calib_dir ? CreateDirectories(calib_dir) : Status::Ok();
+}
 
 void AddIncompleteCaptureOption(OptionParser* parser, bool* allow_incomplete) {
   parser->AddBool("allow-incomplete", allow_incomplete,

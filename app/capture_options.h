@@ -28,6 +28,15 @@ Status ReadCaptureForCommand(const std::string& session_dir, bool allow_incomple
 Status ReadCaptureAndResponse(const std::string& session_dir, bool allow_incomplete, const std::string& response_path,
                               Session* session, CameraResponse* response, std::string* response_file);
 
+// A calibration command's single-file output: `out`, or SESSION/calib/<default_name> when
+// `out` is "". Refused (core/output_guard.h) when it would replace an input outside
+// SESSION/calib/ or a file thinslab did not write; `extra_inputs` are the command's other
+// input files (the response.json it reads), which it must not replace either.
+// The response file a command reads: `response_path`, or SESSION/calib/response.json.
+std::string DefaultResponsePath(const std::string& session_dir, const std::string& response_path);
+Status ResolveCalibOutputFile(const std::string& session_dir, const std::string& default_name,
+                              const std::vector<std::string>& extra_inputs, std::string* out);
+
 // {"complete": bool, "state": string or null, "usable_frames", "planned_frames",
 // "journaled_frames"} (docs/format.md section 9).
 nlohmann::json CaptureSummaryJson(const CaptureCompleteness& completeness);

@@ -5,6 +5,7 @@
 
 #include "app/commands.h"
 #include "app/option_parser.h"
+#include "core/output_guard.h"
 #include "core/file.h"
 
 namespace thinslab {
@@ -25,11 +26,14 @@ int RunDemo(int argc, char** argv) {
   const std::string session_dir = JoinPath(out_dir, "session");
   Image tau;
   if (status.ok()) status = LoadOrGenerateTau(tau_path, sim.rig.seed, &tau);
+  // DIR carries demo's stamp: its simulated session is replaced, a folder of the user's never.
+  if (status.ok()) status = CheckReplaceableFolder(out_dir, "demo");
   if (status.ok()) {
     std::error_code ec;
     std::filesystem::remove_all(session_dir, ec);
     status = CreateDirectories(out_dir);
   }
+  if (status.ok()) status = WriteFileAtomically(JoinPath(out_dir, kOutputStampName), OutputStampText("demo"));
   if (status.ok()) {
     std::cout << "simulating a shadow-map capture (" << tau.width() << "x" << tau.height()
               << " layer, board at " << board_distance_mm << " mm, albedo " << sim.rig.layer_albedo << ", g "

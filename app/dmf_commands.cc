@@ -181,7 +181,32 @@ Status RunLadder(const DmfSliceSet& slices, DmfMaps* maps_out, const DmfMapFitOp
   return Status::Ok();
 }
 
+// The run's own options (the stages' Options::Check() hold theirs).
+Status CheckDmfRun(const DmfRun& run) {
+  std::ostringstream msg;
+  if (!(run.eta == 0 || run.eta > 1) || run.eta > 4) {
+    msg << "--eta " << run.eta << ": must be 0 (the manifest's sample.glass_ior) or a refractive index in (1, 4]";
+  } else if (!(run.cluster_fraction >= 0 && run.cluster_fraction <= 1)) {
+    msg << "--cluster-fraction " << run.cluster_fraction << ": must be in [0, 1] (0 = fit every point)";
+  } else if (run.atlas_stride < 0) {
+    msg << "--atlas-stride " << run.atlas_stride << ": must be >= 0 (0 = at most 64 x 64 tiles)";
+  } else if (run.ladder_tile < 1 || run.ladder_tile > 4096) {
+    msg << "--ladder-tile " << run.ladder_tile << ": must be in 1..4096 grid points";
+  } else if (!(run.processing.pitch_m >= 0)) {
+    msg << "--pitch-mm " << run.processing.pitch_m * 1e3 << ": must be >= 0 (0 = the manifest's pixel_pitch_m)";
+  } else if (run.fit.num_threads < 1 || run.fit.num_threads > kMaxThreads) {
+    msg << "--threads " << run.fit.num_threads << ": must be in 1.." << kMaxThreads;
+  } else {
+    return Status::Ok();
+  }
+  return Status::Error(msg.str());
+}
+
 Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir, DmfRun run, std::string* brief) {
+  THINSLAB_RETURN_IF_ERROR(CheckDmfRun(run));
+  // Refused before the work: an output that would replace an input or a folder of the user's.
+  StagedDirectory out(out_dir, "fit dmf", {{session_dir, {"fit"}}});
+  THINSLAB_RETURN_IF_ERROR(out.Init());
   Session session;
   THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, run.allow_incomplete_capture, &session));
   run.processing.incomplete_capture =
@@ -233,8 +258,6 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   if (has_truth) THINSLAB_RETURN_IF_ERROR(ReadDmfTruth(session_dir, &truth));
 
   const auto write_start = std::chrono::steady_clock::now();
-  StagedDirectory out(out_dir);
-  THINSLAB_RETURN_IF_ERROR(out.Init());
   Image image = maps.ToImage();
   image.attributes()["format_version"] = "1.0";
   image.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;

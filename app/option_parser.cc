@@ -180,7 +180,7 @@ std::string OptionParser::ToIni() const {
 }
 
 std::string Digest(const std::string& text) {
-  uint64_t hash = 1469598103934665603ULL;
+  uint64_t hash = 14695981039346656037ULL;  // FNV-1a 64-bit offset basis.
   for (unsigned char c : text) {
     hash ^= c;
     hash *= 1099511628211ULL;

@@ -60,5 +60,12 @@ TEST(OptionParser, BadValuesNameTheOption) {
   EXPECT_NE(status.message().find("--x needs a value"), std::string::npos);
 }
 
+// docs/format.md promises standard 64-bit FNV-1a: the published test vectors.
+TEST(DigestTest, IsStandardFnv1a64) {
+  EXPECT_EQ(Digest(""), "cbf29ce484222325");
+  EXPECT_EQ(Digest("a"), "af63dc4c8601ec8c");
+  EXPECT_EQ(Digest("foobar"), "85944171f73967e8");
+}
+
 }  // namespace
 }  // namespace thinslab

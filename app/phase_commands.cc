@@ -151,6 +151,9 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
                         const LaserLobePreparationOptions& preparation, bool allow_incomplete_capture,
                         const std::string& options_ini, PhaseFitSummary* summary, std::vector<LaserRing>* rings,
                         LaserLadderResult* ladder) {
+  // Refused before the work: an output that would replace an input or a folder of the user's.
+  StagedDirectory out(out_dir, "fit phase", {{session_dir, {"fit"}}});
+  THINSLAB_RETURN_IF_ERROR(out.Init());
   Session session;
   CaptureCompleteness capture;
   THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete_capture, &session, &capture));
@@ -178,8 +181,6 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
     truth = nlohmann::json::parse(text, nullptr, false);
     if (truth.is_discarded()) return Status::Error(truth_path + ": not valid JSON");
   }
-  StagedDirectory out(out_dir);
-  THINSLAB_RETURN_IF_ERROR(out.Init());
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images, capture, truth)));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "rings.csv"), RingsCsv(*rings)));

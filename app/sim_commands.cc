@@ -3,6 +3,7 @@
 
 #include "app/commands.h"
 #include "app/option_parser.h"
+#include "core/output_guard.h"
 #include "core/exr_io.h"
 #include "sim/contamination_pattern.h"
 #include "sim/synthesize_dot_scan_session.h"
@@ -103,6 +104,7 @@ int RunSimPattern(int argc, char** argv) {
                       options.height_px > 16384)) {
     status = Status::Error("thinslab sim pattern: --width-px/--height-px must be in [8, 16384]");
   }
+  if (status.ok()) status = CheckReplaceableFile(out_path);
   if (status.ok()) {
     Image tau = GenerateContaminationPattern(options);
     tau.attributes()["generator"] = "thinslab sim pattern, seed " + std::to_string(options.seed);

@@ -12,6 +12,7 @@
 
 #include "app/commands.h"
 #include "app/option_parser.h"
+#include "core/output_guard.h"
 #include "core/exr_io.h"
 #include "core/false_color.h"
 #include "core/file.h"
@@ -226,7 +227,7 @@ int RunLayer(int argc, char** argv) {
   std::vector<PanePreviewPanel> panels;
   if (status.ok()) {
     const std::string ini = parser.ToIni();
-    StagedDirectory out(out_dir);
+    StagedDirectory out(out_dir, "synth layer", {{library, {}}, {spec_path, {}}, {background_path, {}}});
     status = out.Init();
     layer.attributes()["format_version"] = "1.0";
     layer.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
@@ -274,14 +275,17 @@ int RunPreview(int argc, char** argv) {
     return 0;
   }
   if (out_path.empty()) out_path = layer_path + "_pane.png";
+  const std::string json_path =
+      out_path.size() > 4 ? out_path.substr(0, out_path.size() - 4) + ".json" : out_path + ".json";
+  const std::vector<InputPath> inputs = {{layer_path, {}}, {background_path, {}}};
+  if (status.ok()) status = CheckOutputFile(out_path, inputs);
+  if (status.ok()) status = CheckOutputFile(json_path, inputs);
   Image layer, background;
   if (status.ok()) status = ReadExr(layer_path, &layer);
   if (status.ok()) status = CheckContaminationLayer(layer, layer_path);
   if (status.ok() && !background_path.empty()) status = ReadBackgroundImage(background_path, &background);
   std::vector<PanePreviewPanel> panels;
   if (status.ok()) status = WritePanePreview(out_path, layer, background, options, &panels);
-  const std::string json_path =
-      out_path.size() > 4 ? out_path.substr(0, out_path.size() - 4) + ".json" : out_path + ".json";
   if (status.ok()) status = WriteFileAtomically(json_path, PanelsJson(panels));
   if (!status.ok()) return Fail(status);
   for (const auto& p : panels) {

@@ -1,9 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 // The thinslab command: a table of subcommands (COLMAP's exe/colmap.cc pattern).
+// Exit codes (docs/cli.md): 0 success; 1 the command refused its input or failed (one line
+// "error: ..." naming the file, field, option or device); 2 unknown command; 3 out of memory;
+// 4 internal error (an exception no command handled, named with the command).
 #include <glog/logging.h>
 
 #include <cstring>
+#include <exception>
 #include <iostream>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -62,7 +67,20 @@ int main(int argc, char** argv) {
   }
   const std::string name = argv[1];
   for (const auto& c : Commands()) {
-    if (name == c.name) return c.run(argc - 2, argv + 2);
+    if (name != c.name) continue;
+    const std::string command = "thinslab " + name + (argc > 2 && argv[2][0] != '-' ? std::string(" ") + argv[2] : "");
+    try {
+      return c.run(argc - 2, argv + 2);
+    } catch (const std::bad_alloc&) {
+      std::cerr << "error: " << command << ": out of memory (the input needs more memory than this machine has)\n";
+      return 3;
+    } catch (const std::exception& e) {
+      std::cerr << "error: " << command << ": internal error: " << e.what() << "\n";
+      return 4;
+    } catch (...) {
+      std::cerr << "error: " << command << ": internal error (unknown exception)\n";
+      return 4;
+    }
   }
   std::cerr << "thinslab: unknown command '" << name << "' (try 'thinslab help')\n";
   return 2;

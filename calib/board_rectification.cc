@@ -22,7 +22,9 @@ double FootprintSidePx(const CameraInfo& camera, const BoardGrid& grid, int i, i
                                  grid.grid_min_m.y() + (j + c / 2) * grid.pixel_pitch_m, grid.plane_z_m);
     if (!ProjectSamplePoint(camera, corner, &uv[c])) return 0;
   }
-  return std::max({(uv[1] - uv[0]).norm(), (uv[3] - uv[2]).norm(), (uv[2] - uv[0]).norm(), (uv[3] - uv[1]).norm()});
+  const double side =
+      std::max({(uv[1] - uv[0]).norm(), (uv[3] - uv[2]).norm(), (uv[2] - uv[0]).norm(), (uv[3] - uv[1]).norm()});
+  return std::isfinite(side) ? std::min(side, 1e6) : 0.0;  // int-convertible; NaN: seen as outside.
 }
 
 }  // namespace
@@ -50,8 +52,9 @@ BoardRectifier::BoardRectifier(const CameraInfo& camera, const BoardGrid& grid)
                                             grid.grid_min_m.y() + (j + (a + 0.5) / s) * grid.pixel_pitch_m,
                                             grid.plane_z_m);
           Eigen::Vector2d uv;
-          if (!ProjectSamplePoint(camera, x_in_sample, &uv) || uv.x() < 0 || uv.y() < 0 || uv.x() >= camera.width_px ||
-              uv.y() >= camera.height_px) {
+          // Written so that a NaN pixel (a board at 1e308 m) counts as outside.
+          if (!ProjectSamplePoint(camera, x_in_sample, &uv) || !(uv.x() >= 0 && uv.y() >= 0 &&
+                                                                 uv.x() < camera.width_px && uv.y() < camera.height_px)) {
             outside_.at(i, j) = 1;
             continue;
           }

@@ -8,6 +8,7 @@
 #include <set>
 #include <thread>
 
+#include "core/parallel.h"
 #include "core/session_io.h"
 
 namespace thinslab {
@@ -24,8 +25,8 @@ bool HdrMergeOptions::Check(std::string* error) const {
     msg << "HdrMergeOptions::log_domain = true needs weighting = kHat (Debevec & Malik Eq. 6)";
   } else if (!(black_level_dn >= 0)) {
     msg << "HdrMergeOptions::black_level_dn = " << black_level_dn << ". Violated constraint: >= 0";
-  } else if (num_threads < 1 || num_threads > 256) {
-    msg << "HdrMergeOptions::num_threads = " << num_threads << ". Violated constraint: 1..256";
+  } else if (num_threads < 1 || num_threads > kMaxThreads) {
+    msg << "HdrMergeOptions::num_threads = " << num_threads << ". Violated constraint: 1.." << kMaxThreads;
   } else {
     for (size_t i = 0; i < weight_table.size(); ++i) {
       if (!(weight_table[i] >= 0) || !std::isfinite(weight_table[i])) {
@@ -395,6 +396,10 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
                            HdrImage* hdr, SessionMergeInfo* info, ExposureCheckMode exposure_check) {
   *info = SessionMergeInfo();
   if (frames.empty()) return Status::Error(session_dir + ": no frames to merge");
+  if (!(fallback_read_noise_dn > 0)) {
+    return Status::Error("MergeSessionBracket: fallback_read_noise_dn = " + std::to_string(fallback_read_noise_dn) +
+                         ". Violated constraint: > 0");
+  }
   std::vector<Image> images(frames.size());
   std::vector<HdrFrame> bracket(frames.size());
   std::set<double> exposures;

@@ -6,6 +6,7 @@
 #include <sstream>
 #include <vector>
 
+#include "core/grid_size.h"
 #include "calib/board_rectification.h"
 #include "core/file.h"
 #include "core/math.h"
@@ -112,14 +113,12 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
   BoardGrid grid;
   grid.grid_min_m = sample.region_min_m;
   grid.pixel_pitch_m = p;
-  grid.width_px = static_cast<int>(std::lround((sample.region_max_m.x() - sample.region_min_m.x()) / p));
-  grid.height_px = static_cast<int>(std::lround((sample.region_max_m.y() - sample.region_min_m.y()) / p));
+  THINSLAB_RETURN_IF_ERROR(CheckedGridSize(sample.region_max_m.x() - sample.region_min_m.x(),
+                                           sample.region_max_m.y() - sample.region_min_m.y(), p, GridRounding::kNearest,
+                                           8, manifest + ": rig.sample (region_min_m, region_max_m, pixel_pitch_m)",
+                                           &grid.width_px, &grid.height_px));
   grid.plane_z_m = -session.rig.board.distance_m;
   grid.supersample = options.supersample;
-  if (grid.width_px < 8 || grid.height_px < 8 || static_cast<double>(grid.width_px) * grid.height_px > 1e8) {
-    return Status::Error(manifest + ": rig.sample: region and pixel_pitch_m give a " + std::to_string(grid.width_px) +
-                         "x" + std::to_string(grid.height_px) + " board grid");
-  }
   const BoardRectifier rectifier(camera, grid);
   images->outside = rectifier.outside();
   images->grid_min_m = grid.grid_min_m;

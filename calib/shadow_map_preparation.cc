@@ -5,6 +5,7 @@
 #include <sstream>
 #include <vector>
 
+#include "core/grid_size.h"
 #include "calib/board_rectification.h"
 #include "core/file.h"
 #include "core/math.h"
@@ -148,12 +149,11 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   // Rectification onto the board plane over the manifest's region grid.
   const SampleInfo& sample = session.rig.sample;
   const double p = sample.pixel_pitch_m;
-  const int w = static_cast<int>(std::lround((sample.region_max_m.x() - sample.region_min_m.x()) / p));
-  const int h = static_cast<int>(std::lround((sample.region_max_m.y() - sample.region_min_m.y()) / p));
-  if (w < 1 || h < 1 || static_cast<double>(w) * h > 1e9) {
-    return Status::Error(manifest + ": rig.sample: region and pixel_pitch_m give a " + std::to_string(w) + "x" +
-                         std::to_string(h) + " grid");
-  }
+  int w = 0, h = 0;
+  THINSLAB_RETURN_IF_ERROR(CheckedGridSize(sample.region_max_m.x() - sample.region_min_m.x(),
+                                           sample.region_max_m.y() - sample.region_min_m.y(), p, GridRounding::kNearest,
+                                           1, manifest + ": rig.sample (region_min_m, region_max_m, pixel_pitch_m)",
+                                           &w, &h));
   const double distance = options.board_distance_m > 0 ? options.board_distance_m : session.rig.board.distance_m;
   maps->region_min_m = sample.region_min_m;
   maps->pixel_pitch_m = p;

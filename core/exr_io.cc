@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/file.h"
+#include "core/version.h"
 
 namespace thinslab {
 namespace {
@@ -63,6 +64,10 @@ Status WriteExr(const std::string& path, const Image& image, ExrPixelType pixel_
     for (const auto& name : image.channel_names()) header.channels().insert(name, Imf::Channel(type));
     for (const auto& [key, value] : image.attributes()) {
       header.insert(key, Imf::StringAttribute(value));
+    }
+    // The mark by which core/output_guard.h knows the file as thinslab's own.
+    if (image.attributes().count("thinslab_version") == 0) {
+      header.insert("thinslab_version", Imf::StringAttribute(THINSLAB_VERSION_STRING));
     }
     // OpenEXR converts pixel types when reading but not when writing: a HALF file channel
     // needs a HALF slice.

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/file.h"
+#include "core/png_io.h"
 
 namespace thinslab {
 
@@ -56,9 +57,7 @@ Status WriteFalseColorPng(const std::string& path, const Image& image, int chann
     cv::putText(canvas, text, cv::Point(bar_x + bar_w + 7, y + 4), cv::FONT_HERSHEY_SIMPLEX, 0.4,
                 cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   }
-  std::vector<uint8_t> bytes;
-  if (!cv::imencode(".png", canvas, bytes)) return Status::Error(path + ": PNG encoding failed");
-  return WriteFileAtomically(path, std::string(bytes.begin(), bytes.end()));
+  return WritePngAtomically(path, canvas);
 }
 
 }  // namespace thinslab

@@ -1,12 +1,16 @@
 // SPDX-License-Identifier: Apache-2.0
 // Atomic output. Every thinslab output goes through these helpers: a file is written to a
-// temporary sibling, flushed and renamed over its target, so a crash or an error never
-// leaves a partial file. A folder of outputs is built in a staging sibling and renamed
-// into place on Commit(); if Commit() is never reached the staging folder is removed.
+// temporary sibling, flushed, renamed over its target and the rename flushed to the parent
+// folder, so a crash, a power cut or an error never leaves a partial file or loses one that
+// was reported written. A folder of outputs is built in a staging sibling and swapped into
+// place on Commit(); if Commit() is never reached the staging folder is removed.
+// What may be replaced at all is core/output_guard.h's rule.
 #pragma once
 
 #include <string>
+#include <vector>
 
+#include "core/output_guard.h"
 #include "core/status.h"
 
 namespace thinslab {
@@ -14,18 +18,29 @@ namespace thinslab {
 Status WriteFileAtomically(const std::string& path, const std::string& bytes);
 Status ReadFileToString(const std::string& path, std::string* bytes);
 bool FileExists(const std::string& path);
+// "" when `path` is a regular file this process can read; otherwise why not, in words ("does
+// not exist", "is a folder, not a file", "is a FIFO, not a regular file", "cannot be read:
+// Permission denied").
+std::string UnreadableFileReason(const std::string& path);
 bool DirectoryExists(const std::string& path);
 Status CreateDirectories(const std::string& path);
 std::string JoinPath(const std::string& a, const std::string& b);
 
+// Flushes a folder's entries (a rename or a new file in it) to disk.
+Status SyncDirectory(const std::string& dir);
+
 class StagedDirectory {
  public:
-  // `final_dir` is created (replacing an older one) only on Commit().
-  explicit StagedDirectory(std::string final_dir);
+  // `final_dir` is created (replacing an older output of the same `command`) only on Commit().
+  // `inputs` are the command's inputs, which the output must stay out of (output_guard.h).
+  StagedDirectory(std::string final_dir, std::string command, std::vector<InputPath> inputs = {});
   ~StagedDirectory();
   StagedDirectory(const StagedDirectory&) = delete;
   StagedDirectory& operator=(const StagedDirectory&) = delete;
 
+  // Checks that final_dir may be replaced (before the work, so a refusal costs nothing),
+  // removes staging folders that killed runs left beside it and creates the staging folder
+  // with its output stamp.
   Status Init();
   // Where to write the outputs before Commit().
   const std::string& path() const { return staging_dir_; }
@@ -34,7 +49,10 @@ class StagedDirectory {
 
  private:
   std::string final_dir_;
+  std::string command_;
+  std::vector<InputPath> inputs_;
   std::string staging_dir_;
+  std::string first_created_parent_;  // The outermost folder Init() created, "" if none.
   bool committed_ = false;
 };
 

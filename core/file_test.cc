@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/output_guard.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {
@@ -82,7 +83,7 @@ TEST_F(FileTest, ReadFileToStringNamesAMissingFile) {
 TEST_F(FileTest, StagedDirectoryCommitMovesFilesIntoPlace) {
   const std::string final_dir = JoinPath(dir_, "fit");
   {
-    StagedDirectory staged(final_dir);
+    StagedDirectory staged(final_dir, "fit tau");
     ASSERT_TRUE(staged.Init().ok());
     EXPECT_EQ(staged.final_path(), final_dir);
     EXPECT_NE(staged.path(), final_dir);
@@ -95,24 +96,27 @@ TEST_F(FileTest, StagedDirectoryCommitMovesFilesIntoPlace) {
   }
   EXPECT_EQ(Read(JoinPath(final_dir, "tau.exr")), "tau");
   EXPECT_EQ(Read(JoinPath(final_dir, "debug/pixel.txt")), "p");
+  EXPECT_EQ(ReadOutputStamp(final_dir), "fit tau");
   EXPECT_THAT(List(dir_), ElementsAre("fit"));
 }
 
 TEST_F(FileTest, StagedDirectoryCommitReplacesAnOlderFolder) {
   const std::string final_dir = JoinPath(dir_, "fit");
   ASSERT_TRUE(CreateDirectories(final_dir).ok());
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(final_dir, kOutputStampName), OutputStampText("fit tau")).ok());
   ASSERT_TRUE(WriteFileAtomically(JoinPath(final_dir, "stale.txt"), "old").ok());
   ASSERT_TRUE(WriteFileAtomically(JoinPath(final_dir, "tau.exr"), "old tau").ok());
   {
-    StagedDirectory staged(final_dir + "/");  // A trailing slash names the same folder.
+    StagedDirectory staged(final_dir + "/", "fit tau");  // A trailing slash names the same folder.
     ASSERT_TRUE(staged.Init().ok());
     ASSERT_TRUE(WriteFileAtomically(JoinPath(staged.path(), "tau.exr"), "new tau").ok());
     // The old output stays intact until Commit().
     EXPECT_EQ(Read(JoinPath(final_dir, "tau.exr")), "old tau");
     ASSERT_TRUE(staged.Commit().ok());
   }
-  EXPECT_THAT(List(final_dir), UnorderedElementsAre("tau.exr"));
+  EXPECT_THAT(List(final_dir), UnorderedElementsAre("tau.exr", kOutputStampName));
   EXPECT_EQ(Read(JoinPath(final_dir, "tau.exr")), "new tau");
+  EXPECT_EQ(ReadOutputStamp(final_dir), "fit tau");
   EXPECT_THAT(List(dir_), ElementsAre("fit"));  // No staging or ".old" folder left behind.
 }
 
@@ -120,7 +124,7 @@ TEST_F(FileTest, StagedDirectoryWithoutCommitLeavesNothing) {
   const std::string final_dir = JoinPath(dir_, "fit");
   std::string staging_dir;
   {
-    StagedDirectory staged(final_dir);
+    StagedDirectory staged(final_dir, "fit tau");
     ASSERT_TRUE(staged.Init().ok());
     staging_dir = staged.path();
     ASSERT_TRUE(WriteFileAtomically(JoinPath(staged.path(), "tau.exr"), "partial").ok());
@@ -135,14 +139,117 @@ TEST_F(FileTest, StagedDirectoryWithoutCommitLeavesNothing) {
 TEST_F(FileTest, StagedDirectoryWithoutCommitKeepsTheOlderFolder) {
   const std::string final_dir = JoinPath(dir_, "fit");
   ASSERT_TRUE(CreateDirectories(final_dir).ok());
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(final_dir, kOutputStampName), OutputStampText("fit tau")).ok());
   ASSERT_TRUE(WriteFileAtomically(JoinPath(final_dir, "tau.exr"), "old tau").ok());
   {
-    StagedDirectory staged(final_dir);
+    StagedDirectory staged(final_dir, "fit tau");
     ASSERT_TRUE(staged.Init().ok());
     ASSERT_TRUE(WriteFileAtomically(JoinPath(staged.path(), "tau.exr"), "partial").ok());
   }
   EXPECT_EQ(Read(JoinPath(final_dir, "tau.exr")), "old tau");
   EXPECT_THAT(List(dir_), ElementsAre("fit"));
+}
+
+// The user's own folder, or another command's output, is never replaced (issue #22).
+TEST_F(FileTest, StagedDirectoryRefusesAFolderThinslabDidNotWrite) {
+  const std::string final_dir = JoinPath(dir_, "mine");
+  ASSERT_TRUE(CreateDirectories(final_dir).ok());
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(final_dir, "thesis.tex"), "years of work").ok());
+  StagedDirectory staged(final_dir, "fit tau");
+  const Status status = staged.Init();
+  ASSERT_FALSE(status.ok());
+  EXPECT_THAT(status.message(), ::testing::HasSubstr(final_dir));
+  EXPECT_THAT(status.message(), ::testing::HasSubstr("not written by thinslab"));
+  EXPECT_EQ(Read(JoinPath(final_dir, "thesis.tex")), "years of work");
+  EXPECT_THAT(List(dir_), ElementsAre("mine"));
+
+  const std::string other = JoinPath(dir_, "dmf");
+  ASSERT_TRUE(CreateDirectories(other).ok());
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(other, kOutputStampName), OutputStampText("fit dmf")).ok());
+  StagedDirectory tau_over_dmf(other, "fit tau");
+  const Status other_status = tau_over_dmf.Init();
+  ASSERT_FALSE(other_status.ok());
+  EXPECT_THAT(other_status.message(), ::testing::HasSubstr("fit dmf"));
+}
+
+TEST_F(FileTest, StagedDirectoryRefusesAFolderAppearingBeforeCommit) {
+  const std::string final_dir = JoinPath(dir_, "fit");
+  StagedDirectory staged(final_dir, "fit tau");
+  ASSERT_TRUE(staged.Init().ok());
+  ASSERT_TRUE(CreateDirectories(final_dir).ok());
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(final_dir, "notes.txt"), "mine").ok());
+  EXPECT_FALSE(staged.Commit().ok());
+  EXPECT_EQ(Read(JoinPath(final_dir, "notes.txt")), "mine");
+}
+
+TEST_F(FileTest, StagedDirectoryRemovesStagingFoldersOfKilledRuns) {
+  const std::string final_dir = JoinPath(dir_, "fit");
+  // A pid that cannot be running: above the kernel's pid_max (4194304 at most).
+  const std::string dead = final_dir + ".partial-999999999";
+  const std::string alive = final_dir + ".partial-1";  // init: a run still going.
+  ASSERT_TRUE(CreateDirectories(dead).ok());
+  ASSERT_TRUE(CreateDirectories(alive).ok());
+  StagedDirectory staged(final_dir, "fit tau");
+  ASSERT_TRUE(staged.Init().ok());
+  EXPECT_FALSE(DirectoryExists(dead));
+  EXPECT_TRUE(DirectoryExists(alive));
+}
+
+TEST_F(FileTest, StagedDirectoryPutsBackAnOutputAKilledCommitMovedAside) {
+  const std::string final_dir = JoinPath(dir_, "fit");
+  const std::string old_dir = final_dir + ".old-999999999";
+  ASSERT_TRUE(CreateDirectories(old_dir).ok());
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(old_dir, kOutputStampName), OutputStampText("fit tau")).ok());
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(old_dir, "tau.exr"), "old tau").ok());
+  StagedDirectory staged(final_dir, "fit tau");
+  ASSERT_TRUE(staged.Init().ok());
+  EXPECT_EQ(Read(JoinPath(final_dir, "tau.exr")), "old tau");
+  EXPECT_FALSE(DirectoryExists(old_dir));
+}
+
+TEST_F(FileTest, OutputOutsideInputs) {
+  const std::string capture = JoinPath(dir_, "S");
+  ASSERT_TRUE(CreateDirectories(JoinPath(capture, "frames")).ok());
+  const std::vector<InputPath> inputs = {{capture, {"fit", "calib"}}};
+  EXPECT_TRUE(CheckOutputOutsideInputs(JoinPath(capture, "fit/tau"), inputs).ok());
+  EXPECT_TRUE(CheckOutputOutsideInputs(JoinPath(capture, "calib/response.json"), inputs).ok());
+  EXPECT_TRUE(CheckOutputOutsideInputs(JoinPath(dir_, "elsewhere"), inputs).ok());
+  EXPECT_TRUE(CheckOutputOutsideInputs(JoinPath(dir_, "S2"), inputs).ok());  // A sibling with a common prefix.
+  for (const std::string& bad : {capture, capture + "/", capture + "/frames", capture + "/session.json", dir_,
+                                capture + "/fit/../frames", capture + "/fitx"}) {
+    const Status status = CheckOutputOutsideInputs(bad, inputs);
+    EXPECT_FALSE(status.ok()) << bad;
+    EXPECT_THAT(status.message(), ::testing::HasSubstr(bad));
+  }
+  // Through a symlink that names the capture by another path.
+  const std::string link = JoinPath(dir_, "link");
+  fs::create_directory_symlink(capture, link);
+  EXPECT_FALSE(CheckOutputOutsideInputs(link + "/frames", inputs).ok());
+  // An input file: the output may not be it.
+  const std::string layer = JoinPath(dir_, "layer.exr");
+  ASSERT_TRUE(WriteFileAtomically(layer, "x").ok());
+  EXPECT_FALSE(CheckOutputOutsideInputs(layer, {{layer, {}}}).ok());
+  EXPECT_TRUE(CheckOutputOutsideInputs(layer + ".png", {{layer, {}}}).ok());
+}
+
+TEST_F(FileTest, ReplaceableFileIsOnlyOneThinslabWrote) {
+  const std::string json = JoinPath(dir_, "response.json");
+  EXPECT_TRUE(CheckReplaceableFile(json).ok());  // Absent.
+  ASSERT_TRUE(WriteFileAtomically(json, R"({"format": "thinslab-response"})").ok());
+  EXPECT_TRUE(CheckReplaceableFile(json).ok());
+  ASSERT_TRUE(WriteFileAtomically(json, R"({"format": "my-lab"})").ok());
+  EXPECT_FALSE(CheckReplaceableFile(json).ok());
+  const std::string txt = JoinPath(dir_, "gamma.txt");
+  ASSERT_TRUE(WriteFileAtomically(txt, "# thinslab display gamma table\n0 0\n").ok());
+  EXPECT_TRUE(CheckReplaceableFile(txt).ok());
+  ASSERT_TRUE(WriteFileAtomically(txt, "my notes\n").ok());
+  const Status status = CheckReplaceableFile(txt);
+  ASSERT_FALSE(status.ok());
+  EXPECT_THAT(status.message(), ::testing::HasSubstr(txt));
+  EXPECT_FALSE(CheckReplaceableFile(dir_).ok());  // A folder where a file belongs.
+  const std::string png = JoinPath(dir_, "photo.png");
+  ASSERT_TRUE(WriteFileAtomically(png, "\x89PNG fake").ok());
+  EXPECT_FALSE(CheckReplaceableFile(png).ok());
 }
 
 TEST_F(FileTest, JoinPath) {

@@ -6,10 +6,15 @@
 
 #include <algorithm>
 #include <atomic>
+#include <system_error>
 #include <thread>
 #include <vector>
 
 namespace thinslab {
+
+// The most threads any thinslab option accepts (--threads; docs/cli.md). Options::Check()
+// refuses more; ParallelFor also never starts more threads than items.
+inline constexpr int kMaxThreads = 256;
 
 template <typename Body>
 void ParallelFor(int n, int num_threads, const Body& body) {
@@ -18,7 +23,15 @@ void ParallelFor(int n, int num_threads, const Body& body) {
     for (int k = next++; k < n; k = next++) body(k);
   };
   std::vector<std::thread> threads;
-  for (int t = 1; t < std::max(1, num_threads); ++t) threads.emplace_back(worker);
+  const int count = std::min({std::max(1, num_threads), std::max(1, n), kMaxThreads});
+  for (int t = 1; t < count; ++t) {
+    // A system out of threads runs the work on the threads it could start.
+    try {
+      threads.emplace_back(worker);
+    } catch (const std::system_error&) {
+      break;
+    }
+  }
   worker();
   for (auto& t : threads) t.join();
 }

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/file.h"
+#include "core/png_io.h"
 
 namespace thinslab {
 namespace {
@@ -192,9 +193,7 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
   }
   cv::putText(canvas, options.x_label, cv::Point(W / 2 - 60, H - 15), cv::FONT_HERSHEY_SIMPLEX, 0.5,
               cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  std::vector<uint8_t> bytes;
-  if (!cv::imencode(".png", canvas, bytes)) return Status::Error(path + ": PNG encoding failed");
-  return WriteFileAtomically(path, std::string(bytes.begin(), bytes.end()));
+  return WritePngAtomically(path, canvas);
 }
 
 }  // namespace thinslab

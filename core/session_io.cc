@@ -27,6 +27,7 @@
 
 #include "core/exr_io.h"
 #include "core/file.h"
+#include "core/png_io.h"
 
 namespace thinslab {
 namespace {
@@ -124,6 +125,30 @@ std::string CheckRelativeFile(const std::string& file) {
       return "must stay inside the session folder (no \"..\" components), got " + Quote(file);
     }
   }
+  return "";
+}
+
+// Where a frame's file is, resolved through symlinks; "" and *resolved set when it is a
+// readable regular file inside the session folder, else why not. Frames are read by this
+// resolved path, so that a symlink pointing out of the capture is refused (issue #22).
+std::string ResolveFrameFile(const std::string& session_dir, const std::string& file, std::string* resolved) {
+  const std::string relative = CheckRelativeFile(file);
+  if (!relative.empty()) return relative;
+  const std::string path = JoinPath(session_dir, file);
+  const std::string unreadable = UnreadableFileReason(path);
+  if (!unreadable.empty()) return "frame file " + Quote(file) + " " + unreadable;
+  std::error_code ec;
+  const fs::path real = fs::canonical(path, ec);
+  const fs::path root = fs::canonical(session_dir, ec);
+  if (ec) return "frame file " + Quote(file) + ": cannot resolve its path: " + ec.message();
+  auto r = real.begin();
+  for (auto s = root.begin(); s != root.end(); ++s, ++r) {
+    if (r == real.end() || *r != *s) {
+      return "frame file " + Quote(file) + " is a symbolic link to " + Quote(real.string()) +
+             ", outside the session folder";
+    }
+  }
+  *resolved = real.string();
   return "";
 }
 
@@ -1042,14 +1067,9 @@ Status ValidateSession(const Session& session, const std::string& session_dir) {
     if (!(f.exposure_time_us > 0) || !std::isfinite(f.exposure_time_us)) {
       return error(p + ".exposure_time_us", "must be > 0, got " + Num(f.exposure_time_us));
     }
-    const std::string reason = CheckRelativeFile(f.file);
-    if (!reason.empty()) return error(p + ".file", reason);
-    if (!FileExists(JoinPath(session_dir, f.file))) {
-      return error(p + ".file", "frame file " + Quote(f.file) +
-                                    " does not exist in the session "
-                                    "folder (status " +
-                                    FrameStatusName(f.status) + ")");
-    }
+    std::string resolved;
+    const std::string reason = ResolveFrameFile(session_dir, f.file, &resolved);
+    if (!reason.empty()) return error(p + ".file", reason + " (status " + FrameStatusName(f.status) + ")");
   }
   if (session.acquisition.present) {
     const AcquisitionInfo& acq = session.acquisition;
@@ -1200,10 +1220,11 @@ Status LoadFrame(const std::string& session_dir, const Session& session, const F
     return Status::Error(manifest + ": " + frame_name + ": unknown camera id " +
                          Quote(frame.camera_id));
   }
-  const std::string reason = CheckRelativeFile(frame.file);
-  if (!reason.empty()) return Status::Error(manifest + ": " + frame_name + ": file " + reason);
-  const std::string path = JoinPath(session_dir, frame.file);
-  if (!FileExists(path)) return Status::Error(path + ": file not found (" + frame_name + ")");
+  std::string path;
+  const std::string reason = ResolveFrameFile(session_dir, frame.file, &path);
+  if (!reason.empty()) {
+    return Status::Error(JoinPath(session_dir, frame.file) + ": " + frame_name + ": " + reason);
+  }
 
   const int w = camera->width_px, h = camera->height_px;
   auto size_error = [&](int got_w, int got_h) {
@@ -1328,17 +1349,11 @@ Status WriteRawFrame(const std::string& path, const Image& raw_dn, int bit_depth
       }
     }
   }
-  std::vector<std::uint8_t> buffer;
-  try {
-    if (!cv::imencode(".png", m, buffer)) return Status::Error(path + ": PNG encoding failed");
-  } catch (const std::exception& e) {
-    return Status::Error(path + ": PNG encoding failed: " + e.what());
-  }
   const fs::path parent = fs::path(path).parent_path();
   if (!parent.empty() && !DirectoryExists(parent.string())) {
     THINSLAB_RETURN_IF_ERROR(CreateDirectories(parent.string()));
   }
-  return WriteFileAtomically(path, std::string(buffer.begin(), buffer.end()));
+  return WritePngAtomically(path, m);
 }
 
 }  // namespace thinslab

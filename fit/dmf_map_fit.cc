@@ -86,8 +86,8 @@ std::vector<uint8_t> InterleavedTrainMask(int nx, int ny, bool hold_out) {
 bool DmfMapFitOptions::Check(std::string* error) const {
   if (!point.Check(error)) return false;
   if (cluster && !clustering.Check(error)) return false;
-  if (num_threads < 1) {
-    *error = "num_threads must be >= 1";
+  if (num_threads < 1 || num_threads > kMaxThreads) {
+    *error = "num_threads = " + std::to_string(num_threads) + " must be in 1.." + std::to_string(kMaxThreads);
     return false;
   }
   return true;

@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/grid_size.h"
 #include "calib/board_rectification.h"
 #include "calib/hdr_merge.h"
 #include "core/file.h"
@@ -230,15 +231,17 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   BoardGrid grid;
   grid.grid_min_m = sample.region_min_m;
   grid.pixel_pitch_m = pitch;
-  grid.width_px = static_cast<int>(std::floor((sample.region_max_m.x() - sample.region_min_m.x()) / pitch + 1e-6));
-  grid.height_px = static_cast<int>(std::floor((sample.region_max_m.y() - sample.region_min_m.y()) / pitch + 1e-6));
+  THINSLAB_RETURN_IF_ERROR(CheckedGridSize(sample.region_max_m.x() - sample.region_min_m.x(),
+                                           sample.region_max_m.y() - sample.region_min_m.y(), pitch, GridRounding::kFloor,
+                                           1, manifest + ": rig.sample (region_min_m, region_max_m) at pitch " +
+                                                  std::to_string(pitch) + " m (--pitch-mm or rig.sample.pixel_pitch_m)",
+                                           &grid.width_px, &grid.height_px));
   grid.plane_z_m = 0;
   grid.supersample = options.supersample;
   // Eq. 12 gives each grid point one lighting direction per dot; averaging a coarse cell
   // (8 mm at 40 mm from the monitor spans +-6 degrees) would blur the lobe by that spread, so
   // the cell is sampled at supersample^2 points instead (docs/models/dual_microfacet_fit.md).
   grid.average_footprint = false;
-  if (grid.width_px < 1 || grid.height_px < 1) return Status::Error(manifest + ": rig.sample region is empty");
   const BoardRectifier rectifier(camera, grid);
 
   slices->width = grid.width_px;

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <vector>
 
+#include "core/parallel.h"
 #include "core/math.h"
 #include "fit/cost_functions/shadow_attenuation_cost.h"
 #include "optics/dirty_glass.h"
@@ -41,8 +42,8 @@ bool TauFitOptions::Check(std::string* error) const {
     msg << "TauFitOptions::outer_tolerance_tau = " << outer_tolerance_tau << ". Violated constraint: > 0";
   } else if (!(kernel_max_angle_deg > 0 && kernel_max_angle_deg < 90)) {
     msg << "TauFitOptions::kernel_max_angle_deg = " << kernel_max_angle_deg << ". Violated constraint: (0, 90)";
-  } else if (num_threads < 1) {
-    msg << "TauFitOptions::num_threads = " << num_threads << ". Violated constraint: >= 1";
+  } else if (num_threads < 1 || num_threads > kMaxThreads) {
+    msg << "TauFitOptions::num_threads = " << num_threads << ". Violated constraint: 1.." << kMaxThreads;
   } else {
     return true;
   }

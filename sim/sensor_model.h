@@ -22,6 +22,15 @@ enum class SimResponseCurve {
   kSCurve,  // v = (g + S(g)) / 2, g the kGamma curve, S(x) = 3x^2 - 2x^3 (smoothstep).
 };
 
+// Largest simulated camera side: larger than any sensor a lab has (issue #22: a 100000 px
+// camera allocated 40 GB per frame before failing).
+inline constexpr int kMaxSimCameraSidePx = 16384;
+// Memory a simulated camera of w x h holds while it renders (radiance, noise and frame
+// buffers, about 16 float planes): the figure CheckMemoryNeed compares with the machine.
+inline double SimCameraMemoryBytes(int width_px, int height_px) {
+  return 16.0 * sizeof(float) * static_cast<double>(width_px) * height_px;
+}
+
 struct SimSensorOptions {
   double full_well_e = 30000;  // Electrons at full scale.
   double read_noise_e = 6;     // RMS electrons.

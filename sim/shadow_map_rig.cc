@@ -7,6 +7,8 @@
 
 #include "acquire/session_writer.h"
 #include "core/math.h"
+#include "core/memory.h"
+#include "sim/sensor_model.h"
 #include "optics/dirty_glass.h"
 #include "optics/shadow_map_model.h"
 
@@ -24,9 +26,14 @@ bool SimShadowMapOptions::Check(std::string* error) const {
     msg << "SimShadowMapOptions::pixel_pitch_m = " << pixel_pitch_m << ". Violated constraint: > 0";
   } else if (!(projector_falloff >= 0 && projector_falloff < 1)) {
     msg << "SimShadowMapOptions::projector_falloff = " << projector_falloff << ". Violated constraint: [0, 1)";
-  } else if (camera_width_px < 16 || camera_height_px < 16) {
+  } else if (camera_width_px < 16 || camera_height_px < 16 || camera_width_px > kMaxSimCameraSidePx ||
+             camera_height_px > kMaxSimCameraSidePx) {
     msg << "SimShadowMapOptions::camera_width_px/camera_height_px = " << camera_width_px << "x"
-        << camera_height_px << ". Violated constraint: >= 16";
+        << camera_height_px << ". Violated constraint: 16.." << kMaxSimCameraSidePx;
+  } else if (const Status memory = CheckMemoryNeed(SimCameraMemoryBytes(camera_width_px, camera_height_px),
+                                                   "SimShadowMapOptions::camera_width_px/camera_height_px: the simulated camera");
+             !memory.ok()) {
+    msg << memory.message();
   } else if (!(camera_tilt_deg >= 0 && camera_tilt_deg < 80)) {
     msg << "SimShadowMapOptions::camera_tilt_deg = " << camera_tilt_deg << ". Violated constraint: [0, 80)";
   } else if (!(reference_fill > 0 && reference_fill <= 2)) {

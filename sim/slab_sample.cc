@@ -7,6 +7,7 @@
 #include <sstream>
 #include <thread>
 
+#include "core/parallel.h"
 #include "optics/fresnel.h"
 #include "optics/microfacet.h"
 
@@ -49,7 +50,9 @@ Status SlabSampleOptions::Check() const {
   if (photons_per_region < 1000) return err("photons_per_region", "must be >= 1000");
   if (table_bins < 4 || table_bins > 1024) return err("table_bins", "must be in [4, 1024]");
   if (max_interactions < 2) return err("max_interactions", "must be >= 2");
-  if (num_threads < 1) return err("num_threads", "must be >= 1");
+  if (num_threads < 1 || num_threads > kMaxThreads) {
+    return err("num_threads", "must be in 1.." + std::to_string(kMaxThreads) + ", got " + std::to_string(num_threads));
+  }
   if (regions.empty()) return err("regions", "must not be empty (DefaultSlabRegions gives the preset)");
   const double eps = 1e-9;
   double area = 0;

@@ -8,6 +8,7 @@
 
 #include "core/exr_io.h"
 #include "core/file.h"
+#include "core/png_io.h"
 #include "core/math.h"
 #include "optics/dirty_glass_layer.h"
 #include "synth/layer_synthesis.h"
@@ -230,9 +231,7 @@ Status WritePanePreview(const std::string& png_path, const Image& layer, const I
     with_gaps.push_back(tiles[k]);
   }
   cv::hconcat(with_gaps, sheet);
-  std::vector<uint8_t> bytes;
-  if (!cv::imencode(".png", sheet, bytes)) return Status::Error(png_path + ": PNG encoding failed");
-  return WriteFileAtomically(png_path, std::string(bytes.begin(), bytes.end()));
+  return WritePngAtomically(png_path, sheet);
 }
 
 Status ReadBackgroundImage(const std::string& path, Image* background) {

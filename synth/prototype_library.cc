@@ -187,7 +187,7 @@ Status WritePrototype(const std::string& library_dir, const Prototype& p, bool o
   j["size_px"] = {p.tau.width(), p.tau.height()};
   j["thinslab_version"] = THINSLAB_VERSION_STRING;
   j["git_hash"] = THINSLAB_GIT_HASH;
-  StagedDirectory out(dir);
+  StagedDirectory out(dir, "synth add-prototype");
   THINSLAB_RETURN_IF_ERROR(out.Init());
   Image tau = p.tau;
   tau.attributes()["format_version"] = "1.0";

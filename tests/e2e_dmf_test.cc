@@ -370,7 +370,7 @@ TEST_F(DmfEndToEnd, ModelLadderFitsNoMoreThanTheRegionNeeds) {
 // rung-3 points carry alpha 0 or 1 (one rough face) and their held-out error stays that of the
 // rung's model.
 TEST_F(DmfEndToEnd, CliLadderChoosesPerRegionAndTheMapsHoldTheChoice) {
-  const std::string out = *dir_ + "/fit_ladder";
+  const std::string out = *dir_ + "/fit/ladder";  // Outputs go under the capture's fit/.
   const RunResult run = RunThinslab("fit dmf " + *dir_ +
                                     " --pitch-mm 4 --hold-out true --cluster-fraction 0 --ladder true --ladder-tile 2 "
                                     "--out " + out);

@@ -1,0 +1,59 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "core/png_io.h"
+
+#include <array>
+#include <cstdint>
+#include <opencv2/imgcodecs.hpp>
+#include <vector>
+
+#include "core/file.h"
+#include "core/version.h"
+
+namespace thinslab {
+namespace {
+
+// CRC-32 of the PNG specification (ISO 3309, polynomial 0xEDB88320), over type + data.
+uint32_t PngCrc(const std::string& bytes) {
+  static const std::array<uint32_t, 256> table = [] {
+    std::array<uint32_t, 256> t{};
+    for (uint32_t n = 0; n < 256; ++n) {
+      uint32_t c = n;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+      t[n] = c;
+    }
+    return t;
+  }();
+  uint32_t c = 0xFFFFFFFFu;
+  for (unsigned char b : bytes) c = table[(c ^ b) & 0xFF] ^ (c >> 8);
+  return c ^ 0xFFFFFFFFu;
+}
+
+void AppendBigEndian(uint32_t v, std::string* out) {
+  for (int shift = 24; shift >= 0; shift -= 8) out->push_back(static_cast<char>((v >> shift) & 0xFF));
+}
+
+}  // namespace
+
+Status WritePngAtomically(const std::string& path, const cv::Mat& image) {
+  std::vector<uint8_t> encoded;
+  try {
+    if (!cv::imencode(".png", image, encoded)) return Status::Error(path + ": PNG encoding failed");
+  } catch (const std::exception& e) {
+    return Status::Error(path + ": PNG encoding failed: " + e.what());
+  }
+  // Signature (8 bytes) + IHDR chunk (4 length + 4 type + 13 data + 4 CRC): the text chunk
+  // goes right after IHDR, where the PNG specification allows it.
+  constexpr size_t kAfterIhdr = 8 + 25;
+  if (encoded.size() < kAfterIhdr) return Status::Error(path + ": PNG encoding failed (short stream)");
+  const std::string body = std::string("tEXt") + "Software" + '\0' + "thinslab " + THINSLAB_VERSION_STRING;
+  std::string chunk;
+  AppendBigEndian(static_cast<uint32_t>(body.size() - 4), &chunk);
+  chunk += body;
+  AppendBigEndian(PngCrc(body), &chunk);
+  std::string bytes(encoded.begin(), encoded.begin() + kAfterIhdr);
+  bytes += chunk;
+  bytes.append(encoded.begin() + kAfterIhdr, encoded.end());
+  return WriteFileAtomically(path, bytes);
+}
+
+}  // namespace thinslab
