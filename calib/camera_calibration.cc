@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/opencv_error.h"
 #include "core/exr_io.h"
 #include "core/file.h"
 
@@ -145,7 +146,7 @@ Status CalibrateCameraFromCorners(const std::vector<std::vector<Eigen::Vector2d>
                               std_intrinsics, std_extrinsics, per_view_errors, flags,
                               cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-12));
   } catch (const cv::Exception& e) {
-    return Status::Error(std::string("calibration: OpenCV calibrateCamera failed: ") + e.what());
+    return Status::Error(std::string("calibration: OpenCV calibrateCamera failed: ") + OpenCvErrorText(e));
   }
   if (!std::isfinite(rms) || K.at<double>(0, 0) <= 0 || K.at<double>(1, 1) <= 0) {
     return Status::Error("calibration: the solver did not converge (degenerate views: vary the board tilt)");
@@ -257,11 +258,13 @@ Status LoadCalibrationImage(const std::string& path, Image* image) {
     *image = exr.Channel(c);
     return Status::Ok();
   }
+  const std::string unreadable = UnreadableFileReason(path);
+  if (!unreadable.empty()) return Status::Error(path + ": " + unreadable);
   cv::Mat m;
   try {
     m = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
   } catch (const cv::Exception& e) {
-    return Status::Error(path + ": cannot decode image: " + e.what());
+    return Status::Error(path + ": cannot decode image: " + OpenCvErrorText(e));
   }
   if (m.empty()) return Status::Error(path + ": cannot decode image (not a PNG/JPEG/TIFF/EXR file?)");
   cv::Mat f;

@@ -8,6 +8,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
+#include "core/opencv_error.h"
 #include "core/camera_model.h"
 
 namespace thinslab {
@@ -64,7 +65,7 @@ Status EstimatePlanePose(const CameraInfo& camera, const std::vector<Eigen::Vect
     cv::solvePnPRefineLM(obj, img, K, D, rvec, tvec,
                          cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 100, 1e-12));
   } catch (const cv::Exception& e) {
-    return Status::Error(std::string("plane pose: OpenCV failed: ") + e.what());
+    return Status::Error(std::string("plane pose: OpenCV failed: ") + OpenCvErrorText(e));
   }
   std::vector<cv::Point2d> projected;
   cv::Mat jacobian;

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/file.h"
+#include "core/memory.h"
 #include "core/version.h"
 
 namespace thinslab {
@@ -115,17 +116,27 @@ Status WriteExr(const std::string& path, const Image& image, ExrPixelType pixel_
 }
 
 Status ReadExr(const std::string& path, Image* image) {
-  if (!FileExists(path)) return Status::Error(path + ": file not found");
+  const std::string unreadable = UnreadableFileReason(path);
+  if (unreadable == "does not exist") return Status::Error(path + ": file not found");
+  if (!unreadable.empty()) return Status::Error(path + ": " + unreadable);
   try {
     Imf::InputFile file(path.c_str());
     const Imath::Box2i dw = file.header().dataWindow();
-    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
-    if (w <= 0 || h <= 0) return Status::Error(path + ": empty data window");
+    const int64_t w64 = int64_t{dw.max.x} - dw.min.x + 1, h64 = int64_t{dw.max.y} - dw.min.y + 1;
+    if (w64 <= 0 || h64 <= 0) return Status::Error(path + ": empty data window");
+    if (w64 > (1 << 24) || h64 > (1 << 24)) {
+      return Status::Error(path + ": data window " + std::to_string(w64) + "x" + std::to_string(h64) +
+                           " px is larger than any image thinslab reads (16777216 px a side)");
+    }
+    const int w = static_cast<int>(w64), h = static_cast<int>(h64);
     std::vector<std::string> names;
     for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {
       names.push_back(it.name());
     }
     if (names.empty()) return Status::Error(path + ": no channels");
+    // A header can declare any data window: refuse one the machine cannot hold before allocating.
+    THINSLAB_RETURN_IF_ERROR(CheckMemoryNeed(sizeof(float) * static_cast<double>(w) * h * names.size(),
+                                             path + ": its " + std::to_string(w) + "x" + std::to_string(h) + " px data window"));
     Image out(w, h, names);
     Imf::FrameBuffer fb;
     const size_t xstride = sizeof(float) * names.size();

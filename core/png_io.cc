@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <vector>
 
+#include "core/opencv_error.h"
 #include "core/file.h"
 #include "core/version.h"
 
@@ -39,7 +40,7 @@ Status WritePngAtomically(const std::string& path, const cv::Mat& image) {
   try {
     if (!cv::imencode(".png", image, encoded)) return Status::Error(path + ": PNG encoding failed");
   } catch (const std::exception& e) {
-    return Status::Error(path + ": PNG encoding failed: " + e.what());
+    return Status::Error(path + ": PNG encoding failed: " + OpenCvErrorText(e));
   }
   // Signature (8 bytes) + IHDR chunk (4 length + 4 type + 13 data + 4 CRC): the text chunk
   // goes right after IHDR, where the PNG specification allows it.

@@ -25,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/opencv_error.h"
 #include "core/exr_io.h"
 #include "core/file.h"
 #include "core/png_io.h"
@@ -1276,7 +1277,7 @@ Status LoadFrame(const std::string& session_dir, const Session& session, const F
     ScopedSilenceStderr silence;
     m = cv::imread(path, cv::IMREAD_UNCHANGED);
   } catch (const std::exception& e) {
-    return Status::Error(path + ": cannot decode image (corrupt or truncated?): " + e.what());
+    return Status::Error(path + ": cannot decode image (corrupt or truncated?): " + OpenCvErrorText(e));
   }
   if (m.empty()) return Status::Error(path + ": cannot decode image (corrupt or truncated?)");
   if (m.channels() != 1) {
