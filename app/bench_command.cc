@@ -12,6 +12,7 @@
 #include "app/commands.h"
 #include "app/knob_sweep.h"
 #include "app/option_parser.h"
+#include "core/parallel.h"
 #include "core/exr_io.h"
 #include "core/file.h"
 #include "core/session_io.h"
@@ -193,7 +194,7 @@ int RunBenchSweep(int argc, char** argv) {
     status = parser.Parse(argc, argv);
   }
   if (!status.ok()) {
-    std::cerr << "thinslab bench sweep: " << status.message() << "\n" << parser.Usage();
+    std::cerr << "error: thinslab bench sweep: " << status.message() << "\n" << parser.Usage();
     return 2;
   }
   if (parser.help_requested()) {
@@ -207,24 +208,24 @@ int RunBenchSweep(int argc, char** argv) {
     std::string m;
     std::getline(list, m, ',');
     if (m != "dmf" && m != "tau" && m != "phase") {
-      std::cerr << "thinslab bench sweep: --methods: unknown method '" << m << "' (dmf, tau, phase)\n";
+      std::cerr << "error: thinslab bench sweep: --methods: unknown method '" << m << "' (dmf, tau, phase)\n";
       return 2;
     }
   }
   if (run.dots < 4 || run.pitch_mm <= 0 || run.camera_width_px < 64 || run.shadow_camera_width_px < 64 ||
-      run.laser_camera_width_px < 64 || run.threads < 1) {
-    std::cerr << "thinslab bench sweep: --dots must be >= 4, --pitch-mm > 0, camera widths >= 64 px, --threads >= 1\n";
+      run.laser_camera_width_px < 64 || run.threads < 1 || run.threads > kMaxThreads) {
+    std::cerr << "error: thinslab bench sweep: --dots must be >= 4, --pitch-mm > 0, camera widths >= 64 px, --threads in 1..256\n";
     return 2;
   }
   std::error_code ec;
   std::filesystem::create_directories(out_dir, ec);
   if (ec) {
-    std::cerr << "thinslab bench sweep: " << out_dir << ": cannot create: " << ec.message() << "\n";
+    std::cerr << "error: thinslab bench sweep: " << out_dir << ": cannot create: " << ec.message() << "\n";
     return 1;
   }
   const std::string captures = JoinPath(out_dir, "captures");
   if (std::filesystem::exists(captures)) {
-    std::cerr << "thinslab bench sweep: " << captures << ": exists; remove it or choose another OUTDIR\n";
+    std::cerr << "error: thinslab bench sweep: " << captures << ": exists; remove it or choose another OUTDIR\n";
     return 1;
   }
   std::vector<SweepPoint> dmf_points, tau_points, phase_points;
@@ -236,7 +237,7 @@ int RunBenchSweep(int argc, char** argv) {
   }
   if (!run.keep_captures) std::filesystem::remove_all(captures, ec);
   if (!status.ok()) {
-    std::cerr << "thinslab bench sweep: " << status.message() << "\n";
+    std::cerr << "error: thinslab bench sweep: " << status.message() << "\n";
     return 1;
   }
   std::string text = "thinslab bench sweep " + std::string(run.quick ? "(quick)" : "") + "\n" + rig_text + "\n";
@@ -245,7 +246,7 @@ int RunBenchSweep(int argc, char** argv) {
   if (do_phase) text += FrontText(phase_points, "phase");
   status = WriteFileAtomically(JoinPath(out_dir, "knob_sweep.txt"), text);
   if (!status.ok()) {
-    std::cerr << "thinslab bench sweep: " << status.message() << "\n";
+    std::cerr << "error: thinslab bench sweep: " << status.message() << "\n";
     return 1;
   }
   std::cout << text;
@@ -257,8 +258,8 @@ int RunBenchSweep(int argc, char** argv) {
 int RunBench(int argc, char** argv) {
   const std::string sub = argc > 0 ? argv[0] : "";
   if (sub == "sweep") return RunBenchSweep(argc - 1, argv + 1);
-  std::cerr << "usage: thinslab bench sweep OUTDIR [options]   (speed-against-accuracy sweep of the fit knobs)\n";
-  return sub == "--help" || sub == "help" ? 0 : 2;
+  return SubcommandUsage("bench", sub,
+                         "usage: thinslab bench sweep OUTDIR [options]   (speed-against-accuracy sweep of the fit knobs)\n");
 }
 
 }  // namespace thinslab

@@ -27,9 +27,9 @@ int RunCalib(int argc, char** argv) {
   for (const Sub& sub : kSubs) {
     if (what == sub.name) return sub.run(argc - 1, argv + 1);
   }
-  std::cerr << "usage: thinslab calib <what> ...\n";
-  for (const Sub& sub : kSubs) std::cerr << "  " << sub.name << std::string(10 - std::string(sub.name).size(), ' ') << sub.help << "\n";
-  return what.empty() || what == "--help" ? 0 : 2;
+  std::string usage = "usage: thinslab calib <what> ...\n";
+  for (const Sub& sub : kSubs) usage += "  " + std::string(sub.name) + std::string(10 - std::string(sub.name).size(), ' ') + sub.help + "\n";
+  return SubcommandUsage("calib", what, usage);
 }
 
 }  // namespace thinslab

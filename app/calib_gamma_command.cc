@@ -85,7 +85,8 @@ int RunCalibGamma(int argc, char** argv) {
                               THINSLAB_GIT_HASH + ") calib gamma from " + session_dir + "; " +
                               std::to_string(summary.num_levels) + " levels, fit residual rms " +
                               std::to_string(summary.rms_residual) + " of full light";
-  status = WriteGammaTable(out, summary.table, comment);
+  status = CreateParentFolder(out);
+  if (status.ok()) status = WriteGammaTable(out, summary.table, comment);
   nlohmann::ordered_json j;
   j["format"] = "thinslab-display-gamma-summary";
   j["format_version"] = "1.0";

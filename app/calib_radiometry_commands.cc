@@ -244,10 +244,11 @@ int RunCalibResponse(int argc, char** argv) {
   options.black_level_dn = camera->black_level_dn;
   CameraResponse response;
   ResponseRecoverySummary summary;
-  status = RecoverResponse(frames, options, &response, &summary).WithContext(session_dir + " (" + group.name + ")");
+  status = RecoverResponse(frames, options, &response, &summary).WithContext(JoinPath(session_dir, kSessionManifestName) + ": frames of kind '" + group.name + "'");
   if (!status.ok()) return Fail(status);
   response.camera_id = camera->id;
-  status = WriteResponse(out, response);
+  status = CreateParentFolder(out);
+  if (status.ok()) status = WriteResponse(out, response);
   if (!status.ok()) return Fail(status);
   std::cout << "bracket '" << group.name << "': " << frames.size() << " exposures, " << group.frames.size()
             << " frames\n" << summary.BriefReport() << "\nwrote " << out << "\n";
@@ -312,11 +313,7 @@ int RunCalibHdr(int argc, char** argv) {
                               (kind.empty() ? std::string() : " of kind '" + kind + "'")));
   }
   const auto darks = OfCamera(session.UsableFrames("dark"), *camera);
-  if (out.empty()) {
-    status = CreateDirectories(JoinPath(session_dir, "calib"));
-    if (!status.ok()) return Fail(status);
-    out = JoinPath(JoinPath(session_dir, "calib"), "hdr");
-  }
+  if (out.empty()) out = JoinPath(JoinPath(session_dir, "calib"), "hdr");
   StagedDirectory staged(out, "calib hdr", {{session_dir, {"calib"}}});
   status = staged.Init();
   if (!status.ok()) return Fail(status);
@@ -413,7 +410,8 @@ int RunCalibFlat(int argc, char** argv) {
   flat.attributes()["median_dn_per_us"] = nlohmann::json(summary.median_dn_per_us).dump();
   flat.attributes()["smoothing_sigma_px"] = nlohmann::json(options.smoothing_sigma_px).dump();
   flat.attributes()["response"] = have_response ? response.method : "linear";
-  status = WriteExr(out, flat);
+  status = CreateParentFolder(out);
+  if (status.ok()) status = WriteExr(out, flat);
   if (!status.ok()) return Fail(status);
   std::cout << summary.BriefReport() << "\nwrote " << out << "\n";
   return 0;

@@ -21,9 +21,12 @@ Status ResolveCalibOutputFile(const std::string& session_dir, const std::string&
   if (out->empty()) *out = JoinPath(calib_dir, default_name);
   std::vector<InputPath> inputs = {{session_dir, {"calib"}}};
   for (const std::string& input : extra_inputs) inputs.push_back({input, {}});
-  THINSLAB_RETURN_IF_ERROR(CheckOutputFile(*out, inputs));
-  const std::string parent = std::filesystem::path(*out).parent_path().string();
-  return parent == calib_dir ? CreateDirectories(calib_dir) : Status::Ok();
+  return CheckOutputFile(*out, inputs);
+}
+
+Status CreateParentFolder(const std::string& file) {
+  const std::string parent = std::filesystem::path(file).parent_path().string();
+  return parent.empty() || DirectoryExists(parent) ? Status::Ok() : CreateDirectories(parent);
 }
 
 void AddIncompleteCaptureOption(OptionParser* parser, bool* allow_incomplete) {

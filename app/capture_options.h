@@ -37,6 +37,10 @@ std::string DefaultResponsePath(const std::string& session_dir, const std::strin
 Status ResolveCalibOutputFile(const std::string& session_dir, const std::string& default_name,
                               const std::vector<std::string>& extra_inputs, std::string* out);
 
+// Creates the folder `file` goes into, if missing: called right before the write, so that a
+// refused or failed command leaves no empty SESSION/calib/ behind.
+Status CreateParentFolder(const std::string& file);
+
 // {"complete": bool, "state": string or null, "usable_frames", "planned_frames",
 // "journaled_frames"} (docs/format.md section 9).
 nlohmann::json CaptureSummaryJson(const CaptureCompleteness& completeness);

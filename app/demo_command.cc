@@ -28,6 +28,7 @@ int RunDemo(int argc, char** argv) {
   if (status.ok()) status = LoadOrGenerateTau(tau_path, sim.rig.seed, &tau);
   // DIR carries demo's stamp: its simulated session is replaced, a folder of the user's never.
   if (status.ok()) status = CheckReplaceableFolder(out_dir, "demo");
+  NewFolderGuard new_output(status.ok() ? out_dir : std::string());
   if (status.ok()) {
     std::error_code ec;
     std::filesystem::remove_all(session_dir, ec);
@@ -56,6 +57,7 @@ int RunDemo(int argc, char** argv) {
     std::cerr << "error: " << status.message() << "\n";
     return 1;
   }
+  new_output.Keep();
   std::cout << summary.BriefReport() << "\n";
   std::printf("accuracy against ground truth (pixels with 0.05 <= tau_true <= 1.5, n = %lld):\n",
               static_cast<long long>(comparison.refined.pixels));

@@ -189,10 +189,7 @@ int RunFit(int argc, char** argv) {
   const std::string what = argc > 0 ? argv[0] : "";
   if (what == "phase") return RunFitPhase(argc - 1, argv + 1);
   if (what == "dmf") return RunFitDmf(argc - 1, argv + 1);
-  if (what != "tau") {
-    std::cerr << "usage: thinslab fit tau|phase|dmf CAPTURE [options]\n";
-    return what.empty() || what == "--help" ? 0 : 2;
-  }
+  if (what != "tau") return SubcommandUsage("fit", what, "usage: thinslab fit tau|phase|dmf CAPTURE [options]\n");
   FitTauRun run;
   std::string session_dir, out_dir;
   OptionParser parser("fit tau");

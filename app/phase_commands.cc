@@ -306,11 +306,13 @@ int RunSimLaser(int argc, char** argv) {
   rig.board_distance_m = distance_mm * 1e-3;
   rig.beam_radius_m = beam_radius_mm * 1e-3;
   rig.beam_offset_m = Eigen::Vector2d(offset_x_mm, offset_y_mm) * 1e-3;
+  NewFolderGuard new_output(out_dir);
   if (status.ok()) status = SynthesizeLaserLobeSession(options, out_dir);
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";
     return 1;
   }
+  new_output.Keep();
   std::cout << "wrote laser-lobe session " << out_dir << "\n";
   return 0;
 }

@@ -3,6 +3,7 @@
 
 #include "app/commands.h"
 #include "app/option_parser.h"
+#include "core/file.h"
 #include "core/output_guard.h"
 #include "core/exr_io.h"
 #include "sim/contamination_pattern.h"
@@ -75,12 +76,14 @@ int RunSimShadowMaps(int argc, char** argv) {
   }
   options.rig.board_distance_m = board_distance_mm * 1e-3;
   Image tau;
+  NewFolderGuard new_output(out_dir);
   if (status.ok()) status = LoadOrGenerateTau(tau_path, options.rig.seed, &tau);
   if (status.ok()) status = SynthesizeShadowMapSession(options, tau, out_dir);
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";
     return 1;
   }
+  new_output.Keep();
   std::cout << "wrote shadow-map session " << out_dir << "\n";
   return 0;
 }
@@ -103,6 +106,13 @@ int RunSimPattern(int argc, char** argv) {
   if (status.ok() && (options.width_px < 8 || options.height_px < 8 || options.width_px > 16384 ||
                       options.height_px > 16384)) {
     status = Status::Error("thinslab sim pattern: --width-px/--height-px must be in [8, 16384]");
+  }
+  if (status.ok() && !(options.max_tau > 0 && options.max_tau <= 100)) {
+    status = Status::Error("thinslab sim pattern: --max-tau " + std::to_string(options.max_tau) + ": must be in (0, 100]");
+  }
+  if (status.ok() && !(options.num_dust_specks >= 0 && options.num_dust_specks <= 1000000)) {
+    status = Status::Error("thinslab sim pattern: --dust-specks " + std::to_string(options.num_dust_specks) +
+                           ": must be in 0..1000000");
   }
   if (status.ok()) status = CheckReplaceableFile(out_path);
   if (status.ok()) {
@@ -160,11 +170,13 @@ int RunSimDotScan(int argc, char** argv) {
   if (status.ok() && photons_k < 1) status = Status::Error("--photons-k: must be >= 1 (thousands of photons)");
   options.sample.photons_per_region = static_cast<int64_t>(photons_k) * 1000;
   SyntheticDotScanResult result;
+  NewFolderGuard new_output(out_dir);
   if (status.ok()) status = SynthesizeDotScanSession(options, out_dir, &result);
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";
     return 1;
   }
+  new_output.Keep();
   std::cout << "wrote dot-scan session " << out_dir << " (" << result.frames << " frames; tables " << result.tracing_s
             << " s, acquisition " << result.acquisition_s << " s)\n";
   return 0;
@@ -178,8 +190,8 @@ int RunSim(int argc, char** argv) {
   if (what == "pattern") return RunSimPattern(argc - 1, argv + 1);
   if (what == "laser") return RunSimLaser(argc - 1, argv + 1);
   if (what == "dot-scan") return RunSimDotScan(argc - 1, argv + 1);
-  std::cerr << "usage: thinslab sim shadow-maps OUT | sim laser OUT | sim dot-scan OUT | sim pattern OUT.exr [options]\n";
-  return what.empty() || what == "--help" ? 0 : 2;
+  return SubcommandUsage("sim", what,
+                         "usage: thinslab sim shadow-maps OUT | sim laser OUT | sim dot-scan OUT | sim pattern OUT.exr [options]\n");
 }
 
 }  // namespace thinslab

@@ -122,6 +122,10 @@ int RunAddPrototype(int argc, char** argv) {
     return 0;
   }
   if (status.ok()) status = ParseCrop(crop, &o);
+  // The library (and the prototype folder in it) must stay out of the fits it is made from.
+  if (status.ok() && !library.empty()) {
+    status = CheckOutputOutsideInputs(library, {{o.fit_tau_dir, {}}, {o.fit_phase_dir, {}}});
+  }
   Prototype p;
   if (status.ok()) status = PrototypeFromFit(o, &p);
   if (status.ok()) status = WritePrototype(library, p, overwrite);
@@ -180,6 +184,10 @@ int RunLayer(int argc, char** argv) {
   if (library.empty()) library = std::string(THINSLAB_DATA_DIR) + "/prototypes";
   if (status.ok() && spec_path.empty() == prototypes.empty()) {
     status = Status::Error("synth layer: give exactly one of --spec FILE or --prototypes a,b,c");
+  }
+  if (status.ok() && parser.IsSet("density") && !(density >= 0 && density <= 1e6)) {
+    status = Status::Error("--density " + std::to_string(density) + ": must be >= 0 (layers per unit area, "
+                           "docs/format.md synthesis spec)");
   }
   if (status.ok() && !spec_path.empty()) status = ReadSynthesisSpec(spec_path, &options);
   if (status.ok() && !prototypes.empty()) {
@@ -304,10 +312,10 @@ int RunSynth(int argc, char** argv) {
   if (what == "add-prototype") return RunAddPrototype(argc - 1, argv + 1);
   if (what == "preview") return RunPreview(argc - 1, argv + 1);
   if (what == "list") return RunList(argc - 1, argv + 1);
-  std::cerr << "usage: thinslab synth layer OUT [options] | synth add-prototype LIBRARY [options] |\n"
-               "       synth preview LAYER.exr [options] | synth list LIBRARY\n"
-               "(each with --help)\n";
-  return what.empty() || what == "--help" ? 0 : 2;
+  return SubcommandUsage("synth", what,
+                         "usage: thinslab synth layer OUT [options] | synth add-prototype LIBRARY [options] |\n"
+                         "       synth preview LAYER.exr [options] | synth list LIBRARY\n"
+                         "(each with --help)\n");
 }
 
 }  // namespace thinslab

@@ -17,8 +17,9 @@ bool ShadowMapPreparationOptions::Check(std::string* error) const {
   std::ostringstream msg;
   if (supersample < 1 || supersample > 8) {
     msg << "ShadowMapPreparationOptions::supersample = " << supersample << ". Violated constraint: 1..8";
-  } else if (!(board_distance_m >= 0)) {
-    msg << "ShadowMapPreparationOptions::board_distance_m = " << board_distance_m << ". Violated constraint: >= 0";
+  } else if (!(board_distance_m >= 0 && board_distance_m <= kMaxBoardDistanceM)) {
+    msg << "ShadowMapPreparationOptions::board_distance_m = " << board_distance_m << ". Violated constraint: [0, "
+        << kMaxBoardDistanceM << "] m (--board-distance-m; 0 = the manifest's)";
   } else {
     return true;
   }

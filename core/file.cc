@@ -127,6 +127,23 @@ std::string JoinPath(const std::string& a, const std::string& b) {
   return (fs::path(a) / fs::path(b)).string();
 }
 
+NewFolderGuard::NewFolderGuard(std::string dir) : dir_(std::move(dir)) {
+  std::error_code ec;
+  const fs::file_status st = fs::symlink_status(dir_, ec);
+  if (!fs::exists(st)) {
+    ours_ = !dir_.empty();
+  } else if (fs::is_directory(st) && fs::is_empty(dir_, ec) && !ec) {
+    ours_ = existed_empty_ = true;
+  }
+}
+
+NewFolderGuard::~NewFolderGuard() {
+  if (keep_ || !ours_) return;
+  std::error_code ec;
+  fs::remove_all(dir_, ec);
+  if (existed_empty_) fs::create_directory(dir_, ec);
+}
+
 StagedDirectory::StagedDirectory(std::string final_dir, std::string command, std::vector<InputPath> inputs)
     : final_dir_(std::move(final_dir)), command_(std::move(command)), inputs_(std::move(inputs)) {
   while (final_dir_.size() > 1 && final_dir_.back() == '/') final_dir_.pop_back();

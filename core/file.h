@@ -26,6 +26,24 @@ bool DirectoryExists(const std::string& path);
 Status CreateDirectories(const std::string& path);
 std::string JoinPath(const std::string& a, const std::string& b);
 
+// A simulation's new output folder: unless Keep() is called, the destructor removes what was
+// written there (a failed simulation leaves no partial capture), restoring the folder as it
+// was (absent, or empty). A folder that held files before is never touched.
+class NewFolderGuard {
+ public:
+  explicit NewFolderGuard(std::string dir);
+  ~NewFolderGuard();
+  NewFolderGuard(const NewFolderGuard&) = delete;
+  NewFolderGuard& operator=(const NewFolderGuard&) = delete;
+  void Keep() { keep_ = true; }
+
+ private:
+  std::string dir_;
+  bool existed_empty_ = false;
+  bool ours_ = false;
+  bool keep_ = false;
+};
+
 // Flushes a folder's entries (a rename or a new file in it) to disk.
 Status SyncDirectory(const std::string& dir);
 

@@ -18,6 +18,9 @@ namespace thinslab {
 constexpr int kSessionFormatMajor = 1;
 constexpr int kSessionFormatMinor = 2;  // 1.1: stream_statistics, acquisition; 1.2: camera frame ids.
 constexpr char kSessionManifestName[] = "session.json";
+// Largest board distance (sample to board/screen) any rig, fit or simulation accepts: a shadow
+// map or laser lobe spreads over millimetres to centimetres; 1e308 m overflowed the projection.
+constexpr double kMaxBoardDistanceM = 10;
 
 // OpenCV pinhole camera with distortion (k1, k2, p1, p2[, k3]); pixel centres at
 // (x + 0.5, y + 0.5) in thinslab images, so cx, cy are in OpenCV's integer-centre

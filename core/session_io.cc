@@ -153,6 +153,15 @@ std::string ResolveFrameFile(const std::string& session_dir, const std::string& 
   return "";
 }
 
+// The projector's light within acos(0.1) = 84.3 degrees of the sample normal.
+constexpr double kMinProjectorCosine = 0.1;
+
+std::string Array3Text(const Eigen::Vector3d& v) {
+  std::ostringstream out;
+  out << "[" << v.x() << ", " << v.y() << ", " << v.z() << "]";
+  return out.str();
+}
+
 // Normalises a quaternion unless it already is unit length to rounding, so that writing
 // and reading a session reproduces it bit for bit.
 void NormalizeIfNeeded(Eigen::Quaterniond* q) {
@@ -972,8 +981,9 @@ Status ValidateSession(const Session& session, const std::string& session_dir) {
 
   // Optional devices.
   if (rig.board.present) {
-    if (!(rig.board.distance_m > 0) || !std::isfinite(rig.board.distance_m)) {
-      return error("rig.board.distance_m", "must be > 0, got " + Num(rig.board.distance_m));
+    if (!(rig.board.distance_m > 0 && rig.board.distance_m <= kMaxBoardDistanceM)) {
+      return error("rig.board.distance_m", "must be in (0, " + Num(kMaxBoardDistanceM) + "] m, got " +
+                                               Num(rig.board.distance_m));
     }
     if (!(rig.board.albedo > 0 && rig.board.albedo <= 1)) {
       return error("rig.board.albedo", "must be in (0, 1], got " + Num(rig.board.albedo));
@@ -987,6 +997,14 @@ Status ValidateSession(const Session& session, const std::string& session_dir) {
     const double n = rig.projector.direction_in_sample.norm();
     if (!(n > 0) || !std::isfinite(n)) {
       return error("rig.projector.direction_in_sample", "must be a non-zero finite vector");
+    }
+    // The light must cross the sample towards the board: a direction in (or near) the sample
+    // plane casts no shadow map (a fit would "succeed" on nothing).
+    if (!(rig.projector.direction_in_sample.z() / n < -kMinProjectorCosine)) {
+      return error("rig.projector.direction_in_sample",
+                   "must point through the sample towards the board (z < 0, at most " +
+                       Num(std::acos(kMinProjectorCosine) * 180 / 3.14159265358979323846) +
+                       " degrees from the normal), got " + Array3Text(rig.projector.direction_in_sample));
     }
   }
   if (rig.laser.present) {

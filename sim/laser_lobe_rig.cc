@@ -10,6 +10,8 @@
 #include "core/file.h"
 #include "sim/sim_session.h"
 #include "core/math.h"
+#include "core/memory.h"
+#include "sim/sensor_model.h"
 #include "optics/dirty_glass.h"
 #include "optics/shadow_map_model.h"
 
@@ -23,10 +25,22 @@ bool SimLaserLobeOptions::Check(std::string* error) const {
     msg << "SimLaserLobeOptions::layer_albedo = " << layer_albedo << ". Violated constraint: [0, 1]";
   } else if (!(layer_g > -1 && layer_g < 1)) {
     msg << "SimLaserLobeOptions::layer_g = " << layer_g << ". Violated constraint: (-1, 1)";
-  } else if (!(board_distance_m > 0)) {
-    msg << "SimLaserLobeOptions::board_distance_m = " << board_distance_m << ". Violated constraint: > 0";
+  } else if (!(board_distance_m > 0 && board_distance_m <= kMaxBoardDistanceM)) {
+    msg << "SimLaserLobeOptions::board_distance_m = " << board_distance_m << ". Violated constraint: (0, "
+        << kMaxBoardDistanceM << "] m (--board-distance-mm)";
   } else if (!(beam_radius_m > 0)) {
     msg << "SimLaserLobeOptions::beam_radius_m = " << beam_radius_m << ". Violated constraint: > 0";
+  } else if (monte_carlo.num_photons < 1) {
+    msg << "SimLaserLobeOptions::monte_carlo.num_photons = " << monte_carlo.num_photons
+        << ". Violated constraint: >= 1 (--photons)";
+  } else if (const Status memory = CheckMemoryNeed(SimCameraMemoryBytes(std::max(camera_width_px, 0), std::max(camera_height_px, 0)),
+                                                   "--camera-width-px/--camera-height-px: the simulated camera");
+             !memory.ok()) {
+    msg << memory.message();
+  } else if (camera_width_px < 16 || camera_height_px < 16 || camera_width_px > kMaxSimCameraSidePx ||
+             camera_height_px > kMaxSimCameraSidePx) {
+    msg << "SimLaserLobeOptions::camera_width_px/camera_height_px = " << camera_width_px << "x" << camera_height_px
+        << ". Violated constraint: 16.." << kMaxSimCameraSidePx << " (--camera-width-px, --camera-height-px)";
   } else if (!(pixel_pitch_m > 0 && board_half_width_m > 10 * pixel_pitch_m)) {
     msg << "SimLaserLobeOptions::board_half_width_m = " << board_half_width_m << ", pixel_pitch_m = "
         << pixel_pitch_m << ". Violated constraint: pitch > 0 and half width > 10 pitches";

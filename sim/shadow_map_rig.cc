@@ -16,8 +16,9 @@ namespace thinslab {
 
 bool SimShadowMapOptions::Check(std::string* error) const {
   std::ostringstream msg;
-  if (!(board_distance_m > 0)) {
-    msg << "SimShadowMapOptions::board_distance_m = " << board_distance_m << ". Violated constraint: > 0";
+  if (!(board_distance_m > 0 && board_distance_m <= kMaxBoardDistanceM)) {
+    msg << "SimShadowMapOptions::board_distance_m = " << board_distance_m << ". Violated constraint: (0, "
+        << kMaxBoardDistanceM << "] m (--board-distance-mm)";
   } else if (!(layer_albedo >= 0 && layer_albedo <= 1)) {
     msg << "SimShadowMapOptions::layer_albedo = " << layer_albedo << ". Violated constraint: [0, 1]";
   } else if (!(layer_g > -1 && layer_g < 1)) {
@@ -26,14 +27,17 @@ bool SimShadowMapOptions::Check(std::string* error) const {
     msg << "SimShadowMapOptions::pixel_pitch_m = " << pixel_pitch_m << ". Violated constraint: > 0";
   } else if (!(projector_falloff >= 0 && projector_falloff < 1)) {
     msg << "SimShadowMapOptions::projector_falloff = " << projector_falloff << ". Violated constraint: [0, 1)";
+  } else if (const Status memory = CheckMemoryNeed(SimCameraMemoryBytes(std::max(camera_width_px, 0), std::max(camera_height_px, 0)),
+                                                   "--camera-width-px/--camera-height-px: the simulated camera");
+             !memory.ok()) {
+    msg << memory.message();
   } else if (camera_width_px < 16 || camera_height_px < 16 || camera_width_px > kMaxSimCameraSidePx ||
              camera_height_px > kMaxSimCameraSidePx) {
     msg << "SimShadowMapOptions::camera_width_px/camera_height_px = " << camera_width_px << "x"
         << camera_height_px << ". Violated constraint: 16.." << kMaxSimCameraSidePx;
-  } else if (const Status memory = CheckMemoryNeed(SimCameraMemoryBytes(camera_width_px, camera_height_px),
-                                                   "SimShadowMapOptions::camera_width_px/camera_height_px: the simulated camera");
-             !memory.ok()) {
-    msg << memory.message();
+  } else if (monte_carlo.num_photons < 1) {
+    msg << "SimShadowMapOptions::monte_carlo.num_photons = " << monte_carlo.num_photons
+        << ". Violated constraint: >= 1 (--photons)";
   } else if (!(camera_tilt_deg >= 0 && camera_tilt_deg < 80)) {
     msg << "SimShadowMapOptions::camera_tilt_deg = " << camera_tilt_deg << ". Violated constraint: [0, 80)";
   } else if (!(reference_fill > 0 && reference_fill <= 2)) {

@@ -59,13 +59,17 @@ Status SimDotMonitorOptions::Check() const {
   if (!(monitor_distance_m > 0)) return err("monitor_distance_m", "must be > 0 m");
   if (!(dot_radius_px > 0)) return err("dot_radius_px", "must be > 0 px");
   if (!(dot_radiance > 0) || !(black_radiance >= 0)) return err("dot_radiance/black_radiance", "must be > 0 / >= 0");
+  if (camera_width_px > 0 && camera_height_px > 0) {
+    THINSLAB_RETURN_IF_ERROR(CheckMemoryNeed(
+        SimCameraMemoryBytes(camera_width_px, camera_height_px),
+        "SimDotMonitorOptions::camera_width_px/height_px (--camera-width-px/--camera-height-px): the simulated camera"));
+  }
   if (camera_width_px <= 0 || camera_height_px <= 0 || camera_width_px > kMaxSimCameraSidePx ||
       camera_height_px > kMaxSimCameraSidePx) {
     return err("camera_width_px/height_px", std::to_string(camera_width_px) + "x" + std::to_string(camera_height_px) +
-                                                ": each must be in 1.." + std::to_string(kMaxSimCameraSidePx));
+                                                ": each must be in 1.." + std::to_string(kMaxSimCameraSidePx) +
+                                                " (--camera-width-px, --camera-height-px)");
   }
-  THINSLAB_RETURN_IF_ERROR(CheckMemoryNeed(SimCameraMemoryBytes(camera_width_px, camera_height_px),
-                                           "SimDotMonitorOptions::camera_width_px/height_px: the simulated camera"));
   if (!(camera_distance_m > 0)) return err("camera_distance_m", "must be > 0 m");
   if (!(std::abs(camera_tilt_deg) < 80)) return err("camera_tilt_deg", "must be within (-80, 80) degrees");
   if (!(camera_view_width_m > 0)) return err("camera_view_width_m", "must be > 0 m");
