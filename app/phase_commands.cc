@@ -293,7 +293,7 @@ int RunSimLaser(int argc, char** argv) {
     while (status.ok() && std::getline(list, item, ',')) {
       char* end = nullptr;
       const double t = std::strtod(item.c_str(), &end);
-      if (item.empty() || *end != '\0' || !(t > 0)) {
+      if (item.empty() || *end != '\0' || !(t > 0) || !std::isfinite(t)) {
         status = Status::Error("thinslab sim laser: option --exposures-us: '" + item + "' is not a positive number");
       }
       options.session.exposure_times_us.push_back(t);

@@ -108,8 +108,8 @@ Status EstimateSamplePoseFromChessboard(const CameraInfo& camera, const Image& i
   THINSLAB_RETURN_IF_ERROR(board.Check());
   if ((board.inner_cols + board.inner_rows) % 2 == 0) {
     return Status::Error("plane pose: a " + std::to_string(board.inner_cols) + "x" + std::to_string(board.inner_rows) +
-                         " chessboard looks the same after a half turn; use a board with inner_cols + inner_rows odd "
-                         "(e.g. 9x6)");
+                         " chessboard (--board) looks the same after a half turn; use a board with inner_cols + "
+                         "inner_rows odd (e.g. 9x6)");
   }
   if (image.width() != camera.width_px || image.height() != camera.height_px) {
     return Status::Error("plane pose: image is " + std::to_string(image.width()) + "x" + std::to_string(image.height()) +

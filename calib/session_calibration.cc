@@ -10,7 +10,7 @@ namespace thinslab {
 
 bool SessionCalibrationOptions::Check(std::string* error) const {
   if (mode != "auto" && mode != "none") {
-    *error = "calibration = '" + mode + "'. Violated constraint: 'auto' or 'none'";
+    *error = "calibration = '" + mode + "' (--calibration, SessionCalibrationOptions::mode). Violated constraint: 'auto' or 'none'";
     return false;
   }
   if (mode == "none" && (!rig_path.empty() || !response_path.empty())) {

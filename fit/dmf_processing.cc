@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "core/grid_size.h"
+#include "core/memory.h"
 #include "calib/board_rectification.h"
 #include "calib/hdr_merge.h"
 #include "core/file.h"
@@ -98,7 +99,7 @@ Status MeasureDotGeometry(const std::string& session_dir, const Session& session
 bool DmfProcessingOptions::Check(std::string* error) const {
   std::ostringstream e;
   if (pitch_m < 0) e << "pitch must be >= 0, got " << pitch_m;
-  else if (!(dot_radius_px > 0)) e << "dot radius must be > 0 px, got " << dot_radius_px;
+  else if (!(dot_radius_px > 0)) e << "dot_radius_px (--dot-radius-px) must be > 0 px, got " << dot_radius_px;
   else if (!(max_saturated_dots >= 0 && max_saturated_dots <= 1)) e << "max_saturated_dots must be in [0, 1]";
   else if (!(max_saturated_points >= 0 && max_saturated_points <= 1)) e << "max_saturated_points must be in [0, 1]";
   else if (supersample < 1 || supersample > 8) e << "supersample must be in [1, 8], got " << supersample;
@@ -238,6 +239,14 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
                                            &grid.width_px, &grid.height_px));
   grid.plane_z_m = 0;
   grid.supersample = options.supersample;
+  // Refused before the slices are allocated: about 16 bytes per point and dot (Eq. 12 slices
+  // and their variances in float) plus 4 KiB per point of fit state (measured: 26 KB per point
+  // with 40 x 40 dots, 8 KB with 16 x 16; docs/benchmarks.md).
+  const double points = static_cast<double>(grid.width_px) * grid.height_px;
+  THINSLAB_RETURN_IF_ERROR(CheckMemoryNeed(
+      points * (16.0 * static_cast<double>(displayed.size()) + 4096.0),
+      manifest + ": the " + std::to_string(grid.width_px) + " x " + std::to_string(grid.height_px) + " point grid of " +
+          std::to_string(displayed.size()) + " dots (--pitch-mm or rig.sample.pixel_pitch_m)"));
   // Eq. 12 gives each grid point one lighting direction per dot; averaging a coarse cell
   // (8 mm at 40 mm from the monitor spans +-6 degrees) would blur the lobe by that spread, so
   // the cell is sampled at supersample^2 points instead (docs/models/dual_microfacet_fit.md).

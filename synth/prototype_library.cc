@@ -257,7 +257,7 @@ Status PrototypeFromFit(const PrototypeFromFitOptions& o, Prototype* p) {
     h = map.height();
   }
   if (x0 + w > map.width() || y0 + h > map.height()) {
-    return Status::Error(tau_path + ": crop " + std::to_string(x0) + "," + std::to_string(y0) + "," +
+    return Status::Error(tau_path + ": crop (--crop) " + std::to_string(x0) + "," + std::to_string(y0) + "," +
                          std::to_string(w) + "," + std::to_string(h) + " lies outside the " +
                          std::to_string(map.width()) + "x" + std::to_string(map.height()) + " map");
   }
