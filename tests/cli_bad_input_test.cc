@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -100,6 +101,40 @@ TEST_F(CliBadInputTest, ValidCaptureFitsAndInfoValidates) {
   EXPECT_GT(fs::file_size(session + "/fit/tau/tau_falsecolor.png"), 1000u);
   EXPECT_TRUE(fs::exists(session + "/fit/tau/summary.json"));
   EXPECT_TRUE(fs::exists(session + "/fit/tau/options.ini"));
+}
+
+// Issue #22: the comparison with a simulated capture's ground truth is optional; when it cannot
+// be made, the fit is still written (with a warning), not thrown away after a full fit.
+TEST_F(CliBadInputTest, FitIsWrittenWhenTheGroundTruthComparisonFails) {
+  const std::string session = CopyBase("bad_truth");
+  Image other(4, 4, {"tau"});  // A truth of another grid than the fit's.
+  ASSERT_TRUE(WriteExr(session + "/ground_truth/tau.exr", other).ok());
+  const RunResult fit = RunThinslab("fit tau " + session);
+  EXPECT_EQ(fit.exit_code, 0) << fit.output;
+  EXPECT_NE(fit.output.find("warning: the fit is written without the ground-truth comparison"), std::string::npos)
+      << fit.output;
+  EXPECT_NE(fit.output.find("ground_truth/tau.exr"), std::string::npos) << fit.output;
+  EXPECT_TRUE(fs::exists(session + "/fit/tau/tau.exr"));
+  EXPECT_TRUE(fs::exists(session + "/fit/tau/summary.json"));
+  EXPECT_FALSE(fs::exists(session + "/fit/tau/comparison.json"));
+  EXPECT_FALSE(fs::exists(session + "/fit/tau/error_falsecolor.png"));
+}
+
+// Issue #22: a second fit replaces the first (its own stamped output), and the staging folder
+// a killed fit left beside it is removed.
+TEST_F(CliBadInputTest, RefitReplacesItsOwnOutputAndClearsAKilledRunsStaging) {
+  const std::string session = CopyBase("refit");
+  ASSERT_EQ(RunThinslab("fit tau " + session).exit_code, 0);
+  const std::string stale = session + "/fit/tau.partial-999999999";  // No such process.
+  fs::create_directories(stale);
+  std::ofstream(stale + "/tau.exr") << "half-written";
+  const RunResult again = RunThinslab("fit tau " + session + " --albedo 0.5");
+  EXPECT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_FALSE(fs::exists(stale));
+  std::ifstream ini(session + "/fit/tau/options.ini");
+  const std::string options((std::istreambuf_iterator<char>(ini)), std::istreambuf_iterator<char>());
+  EXPECT_NE(options.find("albedo = 0.5"), std::string::npos) << options;
+  EXPECT_TRUE(fs::exists(session + "/fit/tau/.thinslab-output"));
 }
 
 TEST_F(CliBadInputTest, MissingFrameFile) {
