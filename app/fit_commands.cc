@@ -62,6 +62,9 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
 Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,
                       TauFitSummary* summary, TauComparison* comparison, bool* has_truth) {
   *has_truth = false;
+  // Options are checked before any frame is read (the stages check them again).
+  std::string options_error;
+  if (!run.fit.Check(&options_error)) return Status::Error(session_dir + ": " + options_error);
   // Refused before the work: an output that would replace an input or a folder of the user's.
   StagedDirectory out(out_dir, "fit tau", {{session_dir, {"fit"}}, {run.phase_dir, {}}});
   THINSLAB_RETURN_IF_ERROR(out.Init());

@@ -151,6 +151,9 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
                         const LaserLobePreparationOptions& preparation, bool allow_incomplete_capture,
                         const std::string& options_ini, PhaseFitSummary* summary, std::vector<LaserRing>* rings,
                         LaserLadderResult* ladder) {
+  // Options are checked before any frame is read (the stages check them again).
+  std::string error;
+  if (!options.Check(&error) || !preparation.Check(&error)) return Status::Error(session_dir + ": " + error);
   // Refused before the work: an output that would replace an input or a folder of the user's.
   StagedDirectory out(out_dir, "fit phase", {{session_dir, {"fit"}}});
   THINSLAB_RETURN_IF_ERROR(out.Init());
