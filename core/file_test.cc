@@ -6,10 +6,14 @@
 #include <stdlib.h>
 
 #include <filesystem>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <vector>
 
+#include "core/exr_io.h"
+#include "core/image.h"
 #include "core/output_guard.h"
+#include "core/png_io.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {
@@ -256,6 +260,33 @@ TEST_F(FileTest, JoinPath) {
   EXPECT_EQ(JoinPath("a", "b.json"), "a/b.json");
   EXPECT_EQ(JoinPath("a/", "b.json"), "a/b.json");
   EXPECT_EQ(JoinPath("", "b.json"), "b.json");
+}
+
+// The marks IsThinslabFile looks for are the ones thinslab's own writers put in, and a marked
+// PNG stays a valid PNG (the text chunk's CRC is checked by libpng on reading).
+TEST_F(FileTest, ThinslabWritersMarkTheirFiles) {
+  const std::string png = JoinPath(dir_, "mark.png");
+  cv::Mat pixels(7, 5, CV_8UC1, cv::Scalar(200));
+  ASSERT_TRUE(WritePngAtomically(png, pixels).ok());
+  EXPECT_TRUE(IsThinslabFile(png));
+  const cv::Mat back = cv::imread(png, cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(back.empty());
+  EXPECT_EQ(back.cols, 5);
+  EXPECT_EQ(back.at<uint8_t>(3, 2), 200);
+  const std::string foreign_png = JoinPath(dir_, "foreign.png");
+  ASSERT_TRUE(cv::imwrite(foreign_png, pixels));
+  EXPECT_FALSE(IsThinslabFile(foreign_png));
+
+  const std::string exr = JoinPath(dir_, "mark.exr");
+  Image image(3, 2, {"tau"});
+  ASSERT_TRUE(WriteExr(exr, image).ok());
+  EXPECT_TRUE(IsThinslabFile(exr));
+  Image read;
+  ASSERT_TRUE(ReadExr(exr, &read).ok());
+  EXPECT_EQ(read.attributes().count("thinslab_version"), 1u);
+  const std::string renamed = JoinPath(dir_, "mark.json");  // Not JSON: not thinslab's.
+  fs::copy_file(exr, renamed);
+  EXPECT_FALSE(IsThinslabFile(renamed));
 }
 
 }  // namespace
