@@ -42,6 +42,9 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
   j["pixels"] = {{"total", s.pixels_total}, {"fitted", s.pixels_fitted}, {"dark", s.pixels_dark},
                  {"saturated", s.pixels_saturated}, {"outside", s.pixels_outside}, {"clamped", s.pixels_clamped},
                  {"next_to_clamped", s.pixels_next_to_clamped}, {"dark_noise", s.pixels_dark_noise}};
+  j["reference"] = {{"mode", fit.reference},
+                    {"pixels_judged_clean", s.pixels_judged_clean >= 0 ? nlohmann::json(s.pixels_judged_clean)
+                                                                       : nlohmann::json(nullptr)}};
   j["outer_iterations"] = s.outer_iterations;
   j["final_max_update_tau"] = s.final_max_update_tau;
   j["rms_normalized_residual"] = s.rms_normalized_residual;
@@ -183,7 +186,9 @@ void AddFitTauOptions(OptionParser* parser, FitTauRun* run) {
   parser->AddDouble("kernel-max-angle-deg", &fit.kernel_max_angle_deg, "largest scattering angle modelled");
   parser->AddInt("threads", &fit.num_threads, "threads for Ceres");
   parser->AddInt("supersample", &run->supersample, "rectification samples per pixel side");
-  parser->AddDouble("board-distance-m", &run->board_distance_m, "override of the manifest's board distance [m]");
+  parser->AddDouble("board-distance-m", &run->board_distance_m,
+                    "override of the manifest's board distance [m] (0: the manifest's); also the plane the frames are "
+                    "rectified onto");
   AddCalibrationOptions(parser, &run->calibration);
   AddIncompleteCaptureOption(parser, &run->allow_incomplete_capture);
 }

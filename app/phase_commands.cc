@@ -114,6 +114,7 @@ std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images,
   }
   j["max_theta_trials"] = trials;
   j["beam_centre_m"] = {s.beam_centre_m.x(), s.beam_centre_m.y()};
+  j["board_distance_m"] = images.board_distance_m;  // The manifest's, or --board-distance-m.
   j["categories"] = s.categories;
   j["calibration"] = CalibrationSummaryJson(calibration);
   j["capture"] = CaptureSummaryJson(capture);
@@ -218,6 +219,9 @@ int RunFitPhase(int argc, char** argv) {
   parser.AddDouble("min-significance", &options.min_significance, "lobe detection threshold [sigma]");
   parser.AddDouble("max-sigma-g", &options.max_sigma_g, "sigma_g above this: g not determined (failure)");
   parser.AddInt("supersample", &preparation.supersample, "rectification sub-samples per board pixel side");
+  parser.AddDouble("board-distance-m", &preparation.board_distance_m,
+                   "override of the manifest's board distance [m] (0: the manifest's); also the plane the frames are "
+                   "rectified onto");
   AddCalibrationOptions(&parser, &preparation.calibration);
   bool allow_incomplete = false;
   AddIncompleteCaptureOption(&parser, &allow_incomplete);

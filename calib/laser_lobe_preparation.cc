@@ -20,6 +20,12 @@ bool LaserLobePreparationOptions::Check(std::string* error) const {
         "LaserLobePreparationOptions::supersample = " + std::to_string(supersample) + ". Violated constraint: 1..8";
     return false;
   }
+  if (!(board_distance_m >= 0 && board_distance_m <= kMaxBoardDistanceM)) {
+    *error = "LaserLobePreparationOptions::board_distance_m = " + std::to_string(board_distance_m) +
+             ". Violated constraint: [0, " + std::to_string(kMaxBoardDistanceM) +
+             "] m (--board-distance-m; 0 = the manifest's)";
+    return false;
+  }
   return true;
 }
 
@@ -117,13 +123,15 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
                                            sample.region_max_m.y() - sample.region_min_m.y(), p, GridRounding::kNearest,
                                            8, manifest + ": rig.sample (region_min_m, region_max_m, pixel_pitch_m)",
                                            &grid.width_px, &grid.height_px));
-  grid.plane_z_m = -session.rig.board.distance_m;
+  const double board_distance_m =
+      options.board_distance_m > 0 ? options.board_distance_m : session.rig.board.distance_m;
+  grid.plane_z_m = -board_distance_m;
   grid.supersample = options.supersample;
   const BoardRectifier rectifier(camera, grid);
   images->outside = rectifier.outside();
   images->grid_min_m = grid.grid_min_m;
   images->pixel_pitch_m = p;
-  images->board_distance_m = session.rig.board.distance_m;
+  images->board_distance_m = board_distance_m;
   images->beam_radius_m = session.rig.laser.present ? session.rig.laser.beam_radius_m : 0.0;
   images->read_noise_dn = read_noise;
   THINSLAB_RETURN_IF_ERROR(

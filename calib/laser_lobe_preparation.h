@@ -17,6 +17,9 @@ namespace thinslab {
 
 struct LaserLobePreparationOptions {
   int supersample = 3;  // Rectification sub-samples per board pixel side.
+  // Sample-to-board distance [m] replacing the manifest's rig.board.distance_m; 0 = the
+  // manifest's. It is also the plane the frames are rectified onto (z = -distance).
+  double board_distance_m = 0;
   // SESSION/calib/rig.json (camera intrinsics and pose) and response.json (linearisation).
   SessionCalibrationOptions calibration;
   bool Check(std::string* error) const;

@@ -94,7 +94,7 @@ constexpr int kMaxBasis = 6;
 using CleanBasis = std::function<void(int pixel, double* b)>;
 
 Status FitCleanReference(const Image& shadow, const std::vector<uint8_t>& usable, int num_basis,
-                         const CleanBasis& basis, const std::string& name, Image* reference) {
+                         const CleanBasis& basis, const std::string& name, Image* reference, int64_t* clean_pixels) {
   const int w = shadow.width(), h = shadow.height();
   std::vector<int> keep;
   for (int i = 0; i < w * h; ++i) {
@@ -140,6 +140,7 @@ Status FitCleanReference(const Image& shadow, const std::vector<uint8_t>& usable
     return Status::Error(name + " reference: fewer than 10% of the pixels look clean (" + std::to_string(keep.size()) +
                          " of " + std::to_string(total) + "); capture a reference frame of clean glass");
   }
+  *clean_pixels = static_cast<int64_t>(keep.size());
   *reference = Image(w, h);
   for (int i = 0; i < w * h; ++i) {
     double b[kMaxBasis];
@@ -195,7 +196,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       const double x = ((i % w) + 0.5) / w - 0.5, y = ((i / w) + 0.5) / h - 0.5;
       b[0] = 1; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
     };
-    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, usable, 6, quadratic, "auto", &reference));
+    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, usable, 6, quadratic, "auto", &reference, &summary->pixels_judged_clean));
   } else {
     if (data.flat.empty()) {
       return Status::Error("FitTau: TauFitOptions::reference = 'flat' but the session has no calib/flat_field.exr; "
@@ -208,7 +209,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       usable[i] = status[i] == 0 && data.shadow.data()[i] > 0;
     }
     auto flat = [&data](int i, double* b) { b[0] = data.flat.data()[i]; };
-    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, usable, 1, flat, "flat", &reference));
+    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, usable, 1, flat, "flat", &reference, &summary->pixels_judged_clean));
   }
   std::vector<float> ref_values;
   for (size_t i = 0; i < n; ++i) {

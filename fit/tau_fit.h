@@ -76,6 +76,9 @@ struct TauFitSummary {
   int64_t pixels_total = 0, pixels_fitted = 0, pixels_dark = 0, pixels_saturated = 0,
           pixels_outside = 0, pixels_clamped = 0, pixels_next_to_clamped = 0;
   int64_t pixels_dark_noise = 0;  // Of pixels_dark: flagged because sigma_tau > max_sigma_tau.
+  // Reference "auto" / "flat": the pixels the clean surface was fitted through (judged clean);
+  // -1 for "frame" (clean-glass frames, no judgement).
+  int64_t pixels_judged_clean = -1;
   int outer_iterations = 0;
   double final_max_update_tau = 0;
   double rms_normalized_residual = 0;  // RMS of (m - model) / sigma_m over fitted pixels.

@@ -137,6 +137,26 @@ TEST_F(CliBadInputTest, RefitReplacesItsOwnOutputAndClearsAKilledRunsStaging) {
   EXPECT_TRUE(fs::exists(session + "/fit/tau/.thinslab-output"));
 }
 
+// Issue #23 section 5: summary.json says which clean reference the fit used and, for 'auto',
+// how many pixels it judged clean.
+TEST_F(CliBadInputTest, SummaryRecordsTheReferenceAndThePixelsJudgedClean) {
+  const std::string session = CopyBase("reference_summary");
+  ASSERT_EQ(RunThinslab("fit tau " + session + " --out " + session + "/fit/frame").exit_code, 0);
+  const RunResult automatic = RunThinslab("fit tau " + session + " --reference auto --out " + session + "/fit/auto");
+  ASSERT_EQ(automatic.exit_code, 0) << automatic.output;
+  auto summary = [&](const std::string& name) {
+    std::ifstream in(session + "/fit/" + name + "/summary.json");
+    return nlohmann::json::parse(in);
+  };
+  const nlohmann::json frame = summary("frame"), autos = summary("auto");
+  EXPECT_EQ(frame["reference"]["mode"], "frame");
+  EXPECT_TRUE(frame["reference"]["pixels_judged_clean"].is_null());
+  EXPECT_EQ(autos["reference"]["mode"], "auto");
+  const int64_t clean = autos["reference"]["pixels_judged_clean"].get<int64_t>();
+  EXPECT_GT(clean, 0);
+  EXPECT_LE(clean, autos["pixels"]["total"].get<int64_t>() - autos["pixels"]["outside"].get<int64_t>());
+}
+
 TEST_F(CliBadInputTest, MissingFrameFile) {
   const std::string session = CopyBase("missing_frame");
   const std::string file = FirstFrameOfKind(ReadManifest(session), "shadow");
@@ -487,6 +507,47 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
     j["frames"] = frames;
   });
   ExpectDmfFitFails(only_all_dots, {only_all_dots + "/session.json", "kind 'dot'", "not a dot scan"});
+}
+
+// Issue #23 section 5: `fit phase --board-distance-m` replaces the manifest's distance (as in
+// `fit tau`): a manifest with a wrong distance plus the option fits the same g, bit for bit, as
+// the manifest with the right one; summary.json records the distance used.
+TEST(FitPhaseCli, BoardDistanceOptionReplacesTheManifests) {
+  TempDir dir;
+  const std::string lobe = dir / "lobe";
+  const RunResult sim = RunThinslab("sim laser " + lobe +
+                                    " --camera-width-px 160 --camera-height-px 120 --capture-clean false --photons 20000");
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  const RunResult right = RunThinslab("fit phase " + lobe + " --out " + lobe + "/fit/right");
+  ASSERT_EQ(right.exit_code, 0) << right.output;
+  std::ifstream in(lobe + "/session.json");
+  nlohmann::json manifest = nlohmann::json::parse(in);
+  in.close();
+  const double distance_m = manifest["rig"]["board"]["distance_m"].get<double>();
+  manifest["rig"]["board"]["distance_m"] = 2 * distance_m;
+  std::ofstream(lobe + "/session.json") << manifest.dump(2);
+  const RunResult wrong = RunThinslab("fit phase " + lobe + " --out " + lobe + "/fit/wrong");
+  std::ostringstream option;
+  option.precision(17);
+  option << distance_m;
+  const RunResult fixed =
+      RunThinslab("fit phase " + lobe + " --board-distance-m " + option.str() + " --out " + lobe + "/fit/fixed");
+  ASSERT_EQ(fixed.exit_code, 0) << fixed.output;
+  auto summary = [&](const std::string& name) {
+    std::ifstream s(lobe + "/fit/" + name + "/summary.json");
+    return nlohmann::json::parse(s);
+  };
+  const nlohmann::json r = summary("right"), f = summary("fixed");
+  EXPECT_EQ(r["g"], f["g"]);
+  EXPECT_EQ(r["sigma_g"], f["sigma_g"]);
+  EXPECT_DOUBLE_EQ(f["board_distance_m"].get<double>(), distance_m);
+  if (wrong.exit_code == 0) {  // The wrong distance moves g (or the fit fails).
+    EXPECT_DOUBLE_EQ(summary("wrong")["board_distance_m"].get<double>(), 2 * distance_m);
+    EXPECT_NE(summary("wrong")["g"], r["g"]);
+  }
+  const RunResult bad = RunThinslab("fit phase " + lobe + " --board-distance-m 1e308 --out " + lobe + "/fit/bad");
+  EXPECT_EQ(bad.exit_code, 1) << bad.output;
+  EXPECT_NE(bad.output.find("--board-distance-m"), std::string::npos) << bad.output;
 }
 
 }  // namespace
