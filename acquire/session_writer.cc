@@ -15,6 +15,7 @@
 #include <regex>
 #include <set>
 
+#include "core/exr_io.h"
 #include "core/file.h"
 #include "core/session_io.h"
 #include "core/session_recovery.h"
@@ -190,12 +191,17 @@ Status SessionWriter::AddFrame(FrameRecord record, const Image& raw_dn, int* ind
   }
   record.index = static_cast<int>(session_.frames.size());
   char name[32];
-  std::snprintf(name, sizeof(name), "%04d.png", record.index);
+  const bool float_frames = camera->bit_depth == 32;  // Linear or float frames: EXR, channel Y.
+  std::snprintf(name, sizeof(name), float_frames ? "%04d.exr" : "%04d.png", record.index);
   const std::string rel_dir = "frames/" + record.camera_id + "/" + record.kind;
   THINSLAB_RETURN_IF_ERROR(CreateDirectories(JoinPath(dir_, rel_dir)));
   record.file = rel_dir + "/" + name;
   if (record.timestamp_utc.empty()) record.timestamp_utc = UtcTimestampNow();
-  THINSLAB_RETURN_IF_ERROR(WriteRawFrame(JoinPath(dir_, record.file), raw_dn, camera->bit_depth));
+  if (float_frames) {
+    THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(dir_, record.file), raw_dn));
+  } else {
+    THINSLAB_RETURN_IF_ERROR(WriteRawFrame(JoinPath(dir_, record.file), raw_dn, camera->bit_depth));
+  }
   session_.frames.push_back(record);
   if (index != nullptr) *index = record.index;
   THINSLAB_RETURN_IF_ERROR(Record());

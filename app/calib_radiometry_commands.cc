@@ -324,11 +324,15 @@ int RunCalibHdr(int argc, char** argv) {
   summary["response"] = have_response ? response.method : "linear";
   summary["weighting"] = weighting;
   summary["camera"] = camera->id;
+  FrameNoiseModel noise;
+  status = ResolveFrameNoise(session_dir, session, *camera, &noise);
+  if (!status.ok()) return Fail(status);
+  summary["noise"] = noise.ToJson();
   for (const Group& group : groups) {
     HdrImage hdr;
     SessionMergeInfo info;
     status = MergeSessionBracket(session_dir, session, *camera, group.frames, darks,
-                                 have_response ? &response : nullptr, options, read_noise_dn, &hdr, &info,
+                                 have_response ? &response : nullptr, options, read_noise_dn, noise, &hdr, &info,
                                  exposures == "measured" ? ExposureCheckMode::kUseMeasured : ExposureCheckMode::kCheck);
     if (!status.ok()) return Fail(status.WithContext(group.name));
     const ExposureCheck& check = info.exposure_check;

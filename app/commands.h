@@ -13,6 +13,7 @@
 #include "fit/phase_fit.h"
 #include "fit/tau_evaluation.h"
 #include "fit/tau_fit.h"
+#include "sim/sensor_model.h"
 #include "sim/synthesize_shadow_session.h"
 
 namespace thinslab {
@@ -76,6 +77,8 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
 class OptionParser;
 void AddSimShadowOptions(OptionParser* parser, SyntheticShadowSessionOptions* options, double* board_distance_mm,
                          std::string* tau_path);
+// --linear-float-frames and --value-scale of every `sim` command (SimSensorOptions).
+void AddSimFrameValueOptions(OptionParser* parser, SimSensorOptions* sensor);
 // Loads --tau EXR or generates the bundled demo pattern on the rig's grid when tau_path is "".
 Status LoadOrGenerateTau(const std::string& tau_path, uint64_t seed, Image* tau);
 

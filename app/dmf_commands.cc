@@ -389,6 +389,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
                      {"warning", processing.dark_level_warning}};
   j["exposure_check"] = ExposureCheckJson(processing.exposure_check, false);
   j["dot_geometry_source"] = processing.dot_geometry_source;
+  j["noise"] = processing.noise.ToJson();
   j["calibration"] = CalibrationSummaryJson(processing.calibration);
   j["capture"] = CaptureSummaryJson(processing.capture);
   j["slice_memory_bytes"] = processing.slice_bytes;

@@ -56,6 +56,7 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
   if (phase != nullptr) j["layer"]["phase_ladder_rung"] = phase->rung;
   j["frames"] = {{"shadow", data.num_shadow_frames}, {"reference", data.num_reference_frames},
                  {"dark", data.num_dark_frames}};
+  j["noise"] = data.noise.ToJson();
   j["timings_s"] = {{"plain", s.plain_s}, {"refine", s.refine_s}, {"fit_total", s.total_s}};
   return j.dump(2) + "\n";
 }

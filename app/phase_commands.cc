@@ -115,6 +115,7 @@ std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images,
   j["max_theta_trials"] = trials;
   j["beam_centre_m"] = {s.beam_centre_m.x(), s.beam_centre_m.y()};
   j["board_distance_m"] = images.board_distance_m;  // The manifest's, or --board-distance-m.
+  j["noise"] = images.noise.ToJson();
   j["categories"] = s.categories;
   j["calibration"] = CalibrationSummaryJson(calibration);
   j["capture"] = CaptureSummaryJson(capture);
@@ -282,6 +283,7 @@ int RunSimLaser(int argc, char** argv) {
   parser.AddDouble("full-well-e", &rig.sensor.full_well_e, "sensor full well [electrons]");
   parser.AddDouble("read-noise-e", &rig.sensor.read_noise_e, "sensor read noise [electrons RMS]");
   parser.AddBool("noise", &rig.sensor.enable_noise, "simulate shot and read noise");
+  AddSimFrameValueOptions(&parser, &rig.sensor);
   parser.AddInt("photons", &rig.monte_carlo.num_photons, "Monte Carlo photons");
   parser.AddInt("camera-width-px", &rig.camera_width_px, "camera image width");
   parser.AddInt("camera-height-px", &rig.camera_height_px, "camera image height");

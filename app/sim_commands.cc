@@ -15,6 +15,13 @@
 
 namespace thinslab {
 
+void AddSimFrameValueOptions(OptionParser* parser, SimSensorOptions* sensor) {
+  parser->AddBool("linear-float-frames", &sensor->linear_float_frames,
+                  "write linear float EXR frames (electrons x value scale, no quantisation, clipping or gain in the "
+                  "manifest), as an HDR tool or a renderer would");
+  parser->AddDouble("value-scale", &sensor->value_scale, "frame values per electron with --linear-float-frames");
+}
+
 void AddSimShadowOptions(OptionParser* parser, SyntheticShadowSessionOptions* options, double* board_distance_mm,
                          std::string* tau_path) {
   SimShadowMapOptions& rig = options->rig;
@@ -35,6 +42,7 @@ void AddSimShadowOptions(OptionParser* parser, SyntheticShadowSessionOptions* op
   parser->AddDouble("read-noise-e", &rig.sensor.read_noise_e, "sensor read noise [electrons RMS]");
   parser->AddInt("bit-depth", &rig.sensor.bit_depth, "sensor bit depth (8..16)");
   parser->AddBool("noise", &rig.sensor.enable_noise, "simulate shot and read noise");
+  AddSimFrameValueOptions(parser, &rig.sensor);
   parser->AddUint64("seed", &rig.seed, "seed of every random choice of the simulation");
   parser->AddInt("frames", &options->session.frames_per_state, "frames per state (shadow, reference)");
   parser->AddInt("dark-frames", &options->session.dark_frames, "dark frames (projector off)");
@@ -156,6 +164,7 @@ int RunSimDotScan(int argc, char** argv) {
   parser.AddInt("threads", &options.sample.num_threads, "threads tracing the region tables");
   parser.AddDouble("truth-pitch-m", &options.truth_pitch_m, "pitch of ground_truth/regions.exr and the sample grid [m]");
   parser.AddBool("noise", &options.rig.sensor.enable_noise, "simulate shot and read noise");
+  AddSimFrameValueOptions(&parser, &options.rig.sensor);
   parser.AddUint64("seed", &options.rig.seed, "seed of the sensor noise");
   parser.AddUint64("sample-seed", &options.sample.seed, "seed of the Monte Carlo tables");
   parser.AddString("name", &options.name, "session name");

@@ -152,6 +152,11 @@ Status FitDisplayGammaSession(const std::string& session_dir, const Session& ses
     if (f->camera_id == camera.id) darks.push_back(f);
   }
   summary->num_darks = static_cast<int>(darks.size());
+  FrameNoiseModel noise;
+  {
+    const Status resolved = ResolveFrameNoise(session_dir, session, camera, &noise);
+    if (!resolved.ok()) return fail(resolved.message());
+  }
   // Whole frames near saturation are left out of their bracket. Dropping only the saturated
   // samples, as the merge does, censors a flat level whose pixels sit near full well: the pixels
   // that noise pushed over are lost and the rest merge low (measured: 6e-4 of full light at a
@@ -183,7 +188,7 @@ Status FitDisplayGammaSession(const std::string& session_dir, const Session& ses
     b.frames = kept;
     SessionMergeInfo info;
     const Status merged = MergeSessionBracket(session_dir, session, camera, b.frames, darks, response, HdrMergeOptions(),
-                                              options.fallback_read_noise_dn, &b.hdr, &info);
+                                              options.fallback_read_noise_dn, noise, &b.hdr, &info);
     if (!merged.ok()) return fail(merged.WithContext(JoinPath(session_dir, b.frames[0]->file)).message());
   }
 

@@ -119,8 +119,11 @@ Status ComputeSessionFlatField(const std::string& session_dir, const Session& se
   }
   HdrImage hdr;
   SessionMergeInfo info;
+  FrameNoiseModel noise;
+  THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(session_dir, session, camera, &noise));
   THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, of_camera(session.UsableFrames("dark")),
-                                               response, HdrMergeOptions(), 1.0, &hdr, &info));
+                                               response, HdrMergeOptions(), 1.0, noise, &hdr, &info));
+  summary->noise = noise;
   *summary = FlatFieldSummary();
   summary->kind = kind;
   summary->num_frames = info.num_frames;

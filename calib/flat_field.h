@@ -11,6 +11,7 @@
 #include <string>
 
 #include "calib/response_io.h"
+#include "calib/frame_noise.h"
 #include "core/image.h"
 #include "core/session.h"
 #include "core/status.h"
@@ -34,6 +35,7 @@ struct FlatFieldSummary {
   int64_t pixels_valid = 0;
   int64_t pixels_invalid = 0;     // Saturated everywhere, too dark or non-finite.
   double read_noise_dn = 0;
+  FrameNoiseModel noise;          // The merge's noise model (calib/frame_noise.h).
   std::string BriefReport() const;
 };
 

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <set>
@@ -82,9 +83,10 @@ class SampleModel {
 
   // x = L(z) - dark (linear DN) and its variance v: shot and read noise in the linear domain,
   // the dark's own variance, and for a nonlinear response the quantisation step L'(z).
-  void Linear(double z, double dark, double dark_var, double* x, double* v) const {
+  // own_var >= 0: the frame's declared variance of z, replacing shot and read noise.
+  void Linear(double z, double dark, double dark_var, double own_var, double* x, double* v) const {
     const double l = Linearize(z);
-    *v = std::max(l, 0.0) / gain_ + read_var_ + dark_var;
+    *v = (own_var >= 0 ? own_var : std::max(l, 0.0) / gain_ + read_var_) + dark_var;
     if (nonlinear_) {
       const double s = options_.response->Slope(z);
       *v += s * s / 12.0;
@@ -93,9 +95,9 @@ class SampleModel {
   }
 
   // Radiance estimate x / t and its variance, whatever the weighting (used by the fallback).
-  void Estimate(double z, double t, double dark, double dark_var, double* x, double* var) const {
+  void Estimate(double z, double t, double dark, double dark_var, double own_var, double* x, double* var) const {
     double v;
-    Linear(z, dark, dark_var, x, &v);
+    Linear(z, dark, dark_var, own_var, x, &v);
     *x /= t;
     *var = v / (t * t);
   }
@@ -112,11 +114,12 @@ class SampleModel {
     return HatWeight(z, options_.saturation_dn);
   }
 
-  Level LevelOf(double z, double dark, double dark_var) const {
+  Level LevelOf(double z, double dark, double dark_var, double own_var = -1) const {
     Level level;
     if (Saturated(z)) return level;
     double x, v;
-    Linear(z, dark, dark_var, &x, &v);
+    Linear(z, dark, dark_var, own_var, &x, &v);
+    if (!(v > 0)) v = std::numeric_limits<double>::min();  // A declared variance of 0: exact.
     if (options_.weighting == HdrWeighting::kInverseVariance) {
       level.a = static_cast<float>(1.0 / v);
       level.b = static_cast<float>(x / v);
@@ -188,6 +191,9 @@ Status CheckFrames(const std::vector<HdrFrame>& frames, int* bit_depth) {
     }
     if (!(f.exposure_time_us > 0) || !std::isfinite(f.exposure_time_us)) {
       return Status::Error("MergeExposureBracket: " + FrameName(frames, k) + " has exposure_time_us <= 0");
+    }
+    if (f.variance_dn2 != nullptr && (f.variance_dn2->width() != w || f.variance_dn2->height() != h)) {
+      return Status::Error("MergeExposureBracket: " + FrameName(frames, k) + ": variance image size differs from the frame's");
     }
     if (f.dark_linear_dn != nullptr &&
         (f.dark_linear_dn->width() != w || f.dark_linear_dn->height() != h || f.dark_count < 1)) {
@@ -280,15 +286,17 @@ Status MergeExposureBracket(const std::vector<HdrFrame>& frames, const HdrMergeO
 
   // Hot loop state as plain arrays (the compiler cannot hoist Image/vector accessors past the
   // output stores).
-  std::vector<const float*> src(num_frames), dark_src(num_frames);
+  std::vector<const float*> src(num_frames), dark_src(num_frames), own_var_src(num_frames);
   std::vector<Scale> scale(num_frames);
   std::vector<char> frame_uses_table(num_frames);
   for (size_t k = 0; k < num_frames; ++k) {
     src[k] = frames[k].dn->data().data();
     dark_src[k] = frames[k].dark_linear_dn != nullptr ? frames[k].dark_linear_dn->data().data() : nullptr;
+    own_var_src[k] = frames[k].variance_dn2 != nullptr ? frames[k].variance_dn2->data().data() : nullptr;
     scale[k] = model.ScaleOf(frames[k].exposure_time_us);
-    frame_uses_table[k] = tables && dark_src[k] == nullptr;
+    frame_uses_table[k] = tables && dark_src[k] == nullptr && own_var_src[k] == nullptr;
   }
+  auto own_var_of = [&](size_t k, size_t i) { return own_var_src[k] != nullptr ? own_var_src[k][i] : -1.0; };
   auto dark_of = [&](size_t k, size_t i, double* dark, double* dark_var) {
     *dark = *dark_var = 0;
     if (dark_src[k] == nullptr) return;
@@ -326,7 +334,7 @@ Status MergeExposureBracket(const std::vector<HdrFrame>& frames, const HdrMergeO
           } else {
             double dark, dark_var;
             dark_of(k, row + x, &dark, &dark_var);
-            level = model.LevelOf(row_src[x], dark, dark_var);
+            level = model.LevelOf(row_src[x], dark, dark_var, own_var_of(k, row + x));
           }
           acc_w[x] += sa * level.a;
           acc_wx[x] += sb * level.b + soff * level.a;
@@ -359,7 +367,7 @@ Status MergeExposureBracket(const std::vector<HdrFrame>& frames, const HdrMergeO
             if (model.Saturated(z)) continue;
             double dark, dark_var, estimate, var;
             dark_of(k, i, &dark, &dark_var);
-            model.Estimate(z, frames[k].exposure_time_us, dark, dark_var, &estimate, &var);
+            model.Estimate(z, frames[k].exposure_time_us, dark, dark_var, own_var_of(k, i), &estimate, &var);
             radiance = static_cast<float>(estimate);
             variance = static_cast<float>(var);
             found = true;
@@ -393,18 +401,24 @@ Status MergeExposureBracket(const std::vector<HdrFrame>& frames, const HdrMergeO
 Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                            const std::vector<const FrameRecord*>& frames, const std::vector<const FrameRecord*>& darks,
                            const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
-                           HdrImage* hdr, SessionMergeInfo* info, ExposureCheckMode exposure_check) {
+                           const FrameNoiseModel& noise, HdrImage* hdr, SessionMergeInfo* info,
+                           ExposureCheckMode exposure_check) {
   *info = SessionMergeInfo();
   if (frames.empty()) return Status::Error(session_dir + ": no frames to merge");
   if (!(fallback_read_noise_dn > 0)) {
     return Status::Error("MergeSessionBracket: fallback_read_noise_dn = " + std::to_string(fallback_read_noise_dn) +
                          ". Violated constraint: > 0");
   }
-  std::vector<Image> images(frames.size());
+  std::vector<Image> images(frames.size()), variances(frames.size());
   std::vector<HdrFrame> bracket(frames.size());
   std::set<double> exposures;
   for (size_t k = 0; k < frames.size(); ++k) {
     THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *frames[k], &images[k]));
+    THINSLAB_RETURN_IF_ERROR(LoadFrameVariance(session_dir, session, *frames[k], &variances[k]));
+    if (!variances[k].empty()) {
+      bracket[k].variance_dn2 = &variances[k];
+      ++info->num_variance_files;
+    }
     bracket[k].dn = &images[k];
     bracket[k].exposure_time_us = frames[k]->exposure_time_us;
     bracket[k].bit_depth = camera.bit_depth <= 16 ? camera.bit_depth : 0;
@@ -422,7 +436,9 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
   // shot noise): half the variance of the difference of two of them (no fixed pattern), or the
   // spread of a single one.
   auto linear = [&](float v) { return response != nullptr ? response->Linearize(v) : static_cast<double>(v); };
-  if (!dark_by_exposure.empty()) {
+  if (noise.variance_floor.has_value()) {
+    info->read_noise_dn = std::sqrt(*noise.variance_floor);
+  } else if (!dark_by_exposure.empty()) {
     const std::vector<Image>& group = dark_by_exposure.begin()->second;
     const size_t n = group[0].data().size();
     double sum = 0, sum_sq = 0;
@@ -459,9 +475,12 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
   }
   options.saturation_dn = camera.saturation_dn - camera.black_level_dn;
   options.black_level_dn = camera.black_level_dn;
-  options.gain_e_per_dn = camera.gain_e_per_dn;
+  options.gain_e_per_dn = noise.method == "default" ? camera.gain_e_per_dn : noise.gain_e_per_dn();
   options.read_noise_dn = info->read_noise_dn;
   options.response = response;
+  info->noise = noise;
+  // Linear frames (already radiance) have no exposure of their own to check.
+  if (camera.linear_frames()) exposure_check = ExposureCheckMode::kNone;
   if (exposure_check != ExposureCheckMode::kNone) {
     THINSLAB_RETURN_IF_ERROR(CheckBracketExposures(bracket, options, &info->exposure_check).WithContext(session_dir));
   }

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "calib/exposure_check.h"
+#include "calib/frame_noise.h"
 #include "calib/response_io.h"
 #include "core/image.h"
 #include "core/session.h"
@@ -47,6 +48,10 @@ struct HdrFrame {
   // with the same response, averaged over dark_count frames); subtracted in the linear domain.
   const Image* dark_linear_dn = nullptr;
   int dark_count = 1;
+  // Optional per-pixel variance of dn (the frame's own noise, e.g. a renderer's or HDR tool's
+  // variance channel; docs/format.md variance_file), replacing the shot + read model for this
+  // frame. Same size as dn; must outlive the call.
+  const Image* variance_dn2 = nullptr;
   int bit_depth = 0;  // 0 = not declared. Declared depths must agree across the bracket.
   std::string name;   // For messages (e.g. the frame file); "" = "frame <k>".
 };
@@ -88,7 +93,9 @@ Status MergeExposureBracket(const std::vector<HdrFrame>& frames, const HdrMergeO
 // exposure (dark frames with the frame's exposure within 0.1 %; otherwise those of the nearest
 // exposure, counted in dark_exposure_mismatches), estimates the read noise in linear DN from the
 // shortest exposure's darks (half the variance of the difference of two, or the spread of one;
-// `fallback_read_noise_dn` without darks) and merges. Saturation, black level, gain and
+// `fallback_read_noise_dn` without darks) unless `noise` (ResolveFrameNoise) knows the floor,
+// takes the shot noise from `noise` when the camera declares no gain, uses each frame's
+// variance_file where it has one, and merges. Saturation, black level, gain and
 // bit depth come from the camera. Errors name the frame file.
 struct SessionMergeInfo {
   int num_frames = 0;
@@ -102,6 +109,8 @@ struct SessionMergeInfo {
   // apply what it reports.
   ExposureCheck exposure_check;
   bool merged_with_measured_exposures = false;
+  FrameNoiseModel noise;   // The model the merge used (calib/frame_noise.h).
+  int num_variance_files = 0;  // Frames that brought their own variance (variance_file).
 };
 enum class ExposureCheckMode {
   kNone,
@@ -111,7 +120,7 @@ enum class ExposureCheckMode {
 Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                            const std::vector<const FrameRecord*>& frames, const std::vector<const FrameRecord*>& darks,
                            const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
-                           HdrImage* hdr, SessionMergeInfo* info,
+                           const FrameNoiseModel& noise, HdrImage* hdr, SessionMergeInfo* info,
                            ExposureCheckMode exposure_check = ExposureCheckMode::kNone);
 
 // The hat weight of Debevec & Malik 1997 (Eq. 4) on black-subtracted z in [0, z_sat],

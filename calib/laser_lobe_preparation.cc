@@ -33,23 +33,28 @@ namespace {
 
 Status MergeAndRectify(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                        const CameraResponse* response, const std::vector<const FrameRecord*>& frames,
-                       double read_noise_dn, const BoardRectifier& rectifier, BoardHdr* out) {
+                       double read_noise_dn, const FrameNoiseModel& noise, const BoardRectifier& rectifier,
+                       BoardHdr* out) {
   if (frames.empty()) return Status::Ok();
-  std::vector<Image> images(frames.size());
+  std::vector<Image> images(frames.size()), variances(frames.size());
   std::vector<HdrFrame> hdr_frames;
   std::set<double> exposures;
   for (size_t k = 0; k < frames.size(); ++k) {
     THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *frames[k], &images[k]));
+    THINSLAB_RETURN_IF_ERROR(LoadFrameVariance(session_dir, session, *frames[k], &variances[k]));
     hdr_frames.push_back({&images[k], frames[k]->exposure_time_us});
+    if (!variances[k].empty()) hdr_frames.back().variance_dn2 = &variances[k];
     exposures.insert(frames[k]->exposure_time_us);
   }
   HdrMergeOptions merge_options;
   merge_options.saturation_dn = camera.saturation_dn - camera.black_level_dn;
-  merge_options.gain_e_per_dn = camera.gain_e_per_dn;
-  merge_options.read_noise_dn = std::max(read_noise_dn, 0.5);
+  merge_options.gain_e_per_dn = noise.method == "default" ? camera.gain_e_per_dn : noise.gain_e_per_dn();
+  // An estimated or declared floor is the read noise; the 0.5 DN floor is for integer darks.
+  merge_options.read_noise_dn = noise.variance_floor.has_value() ? std::sqrt(*noise.variance_floor)
+                                                                 : std::max(read_noise_dn, 0.5);
   merge_options.response = response;
   merge_options.black_level_dn = camera.black_level_dn;
-  if (exposures.size() >= 2) {
+  if (exposures.size() >= 2 && !camera.linear_frames()) {
     THINSLAB_RETURN_IF_ERROR(CheckBracketExposures(hdr_frames, merge_options, &out->exposure_check));
   }
   HdrImage hdr;
@@ -91,10 +96,12 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
   }
   std::set<double> lobe_exposures;
   for (const auto* f : lobe) lobe_exposures.insert(f->exposure_time_us);
-  if (lobe_exposures.size() < 2) {
+  // Linear frames (frame_values "linear": merged HDR, a renderer) already hold the whole range.
+  if (lobe_exposures.size() < 2 && !camera.linear_frames()) {
     return Status::Error(manifest + ": frames: the 'laser' frames hold a single exposure_time_us (" +
                          std::to_string(*lobe_exposures.begin()) +
-                         "); the lobe spans many decades and needs an exposure bracket (>= 2 exposures)");
+                         "); the lobe spans many decades and needs an exposure bracket (>= 2 exposures), or frames "
+                         "already linear over that range declared with rig.cameras[].frame_values \"linear\"");
   }
   // Read noise from the dark frames' spread around their mean, per exposure group.
   const auto darks = of_camera(session.UsableFrames("dark"));
@@ -133,14 +140,17 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
   images->pixel_pitch_m = p;
   images->board_distance_m = board_distance_m;
   images->beam_radius_m = session.rig.laser.present ? session.rig.laser.beam_radius_m : 0.0;
+  THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(session_dir, session, camera, &images->noise));
+  if (images->noise.variance_floor.has_value()) read_noise = std::sqrt(*images->noise.variance_floor);
   images->read_noise_dn = read_noise;
+  const FrameNoiseModel& noise = images->noise;
   THINSLAB_RETURN_IF_ERROR(
-      MergeAndRectify(session_dir, session, camera, response, lobe, read_noise, rectifier, &images->lobe));
+      MergeAndRectify(session_dir, session, camera, response, lobe, read_noise, noise, rectifier, &images->lobe));
   THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response,
-                                           of_camera(session.UsableFrames("laser", "clean")), read_noise, rectifier,
-                                           &images->clean));
+                                           of_camera(session.UsableFrames("laser", "clean")), read_noise, noise,
+                                           rectifier, &images->clean));
   THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response,
-                                           of_camera(session.UsableFrames("flat")), read_noise, rectifier,
+                                           of_camera(session.UsableFrames("flat")), read_noise, noise, rectifier,
                                            &images->flat));
   return Status::Ok();
 }

@@ -47,6 +47,7 @@ struct LaserLobeImages {
   double board_distance_m = 0;
   double beam_radius_m = 0;
   double read_noise_dn = 0;
+  FrameNoiseModel noise;  // Of the camera's frames (calib/frame_noise.h), in summary.json.
   CameraInfo camera;               // The manifest camera with the calibration applied.
   SessionCalibration calibration;  // What was applied.
 };

@@ -45,22 +45,29 @@ struct DarkLevel {
 };
 
 // Averages frames of one kind, linearised by the camera response (nullptr = linear) and
-// normalised by exposure, with a saturation mask. Variance from the sensor's conversion gain
-// (shot noise) and the dark frames' read noise, in raw DN, times the response's slope squared.
+// normalised by exposure, with a saturation mask. Variance from the noise model (shot noise;
+// the read noise from it or from the dark frames) or the frame's own variance_file, in raw DN,
+// times the response's slope squared.
 Status AverageFrames(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                      const CameraResponse* response, const std::vector<const FrameRecord*>& frames,
-                     const DarkLevel& dark, AveragedFrames* out) {
+                     const DarkLevel& dark, const FrameNoiseModel& noise, AveragedFrames* out) {
   out->count = static_cast<int>(frames.size());
   const int w = camera.width_px, h = camera.height_px;
   Image sum(w, h), sum_exposure_var(w, h), saturated(w, h);
   const float saturation_above_black = static_cast<float>(camera.saturation_dn - camera.black_level_dn);
+  const bool test_saturation = camera.bit_depth != 32 || camera.linear_frames();
+  // Without a model ("default": no gain and nothing to estimate from) there is no shot noise.
+  const double variance_per_value =
+      noise.method == "default" ? (camera.gain_e_per_dn > 0 ? 1 / camera.gain_e_per_dn : 0.0) : noise.variance_per_value;
+  const double read_variance = noise.variance_floor.value_or(dark.read_variance_dn2);
   for (const FrameRecord* frame : frames) {
-    Image dn;
+    Image dn, own_variance;
     THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *frame, &dn));
+    THINSLAB_RETURN_IF_ERROR(LoadFrameVariance(session_dir, session, *frame, &own_variance));
     const double t = frame->exposure_time_us;
     for (size_t i = 0; i < dn.data().size(); ++i) {
       const float z = dn.data()[i];
-      if (camera.bit_depth != 32 && z >= saturation_above_black - 0.5f) saturated.data()[i] = 1;
+      if (test_saturation && z >= saturation_above_black - 0.5f) saturated.data()[i] = 1;
       double v = response != nullptr ? response->Linearize(z) : z;
       const double slope = response != nullptr ? response->Slope(z) : 1.0;
       double signal_dn = z;
@@ -69,8 +76,10 @@ Status AverageFrames(const std::string& session_dir, const Session& session, con
         signal_dn -= dark.raw_dn.data()[i];
       }
       sum.data()[i] += static_cast<float>(v / t);
-      const double shot = camera.gain_e_per_dn > 0 ? std::max(0.0, signal_dn) / camera.gain_e_per_dn : 0.0;
-      sum_exposure_var.data()[i] += static_cast<float>(Sqr(slope) * (shot + dark.read_variance_dn2) / (t * t));
+      const double frame_variance = own_variance.empty()
+                                        ? variance_per_value * std::max(0.0, signal_dn) + read_variance
+                                        : own_variance.data()[i];
+      sum_exposure_var.data()[i] += static_cast<float>(Sqr(slope) * frame_variance / (t * t));
     }
   }
   const float n = static_cast<float>(frames.size());
@@ -141,10 +150,13 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
 
   DarkLevel dark;
   THINSLAB_RETURN_IF_ERROR(AverageDarks(session_dir, session, camera, response, dark_frames, &dark));
+  THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(session_dir, session, camera, &maps->noise));
   AveragedFrames shadow, reference;
-  THINSLAB_RETURN_IF_ERROR(AverageFrames(session_dir, session, camera, response, shadow_frames, dark, &shadow));
+  THINSLAB_RETURN_IF_ERROR(
+      AverageFrames(session_dir, session, camera, response, shadow_frames, dark, maps->noise, &shadow));
   if (!reference_frames.empty()) {
-    THINSLAB_RETURN_IF_ERROR(AverageFrames(session_dir, session, camera, response, reference_frames, dark, &reference));
+    THINSLAB_RETURN_IF_ERROR(
+        AverageFrames(session_dir, session, camera, response, reference_frames, dark, maps->noise, &reference));
   }
 
   // Rectification onto the board plane over the manifest's region grid.

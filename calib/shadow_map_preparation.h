@@ -7,6 +7,7 @@
 
 #include <string>
 
+#include "calib/frame_noise.h"
 #include "calib/session_calibration.h"
 #include "core/image.h"
 #include "core/session.h"
@@ -44,6 +45,7 @@ struct RectifiedShadowMaps {
   int num_shadow_frames = 0;
   int num_reference_frames = 0;
   int num_dark_frames = 0;
+  FrameNoiseModel noise;  // Of the camera's frames (calib/frame_noise.h), in summary.json.
   CameraInfo camera;                 // The manifest camera with the calibration applied.
   SessionCalibration calibration;    // What was applied.
 };

@@ -16,7 +16,8 @@
 namespace thinslab {
 
 constexpr int kSessionFormatMajor = 1;
-constexpr int kSessionFormatMinor = 2;  // 1.1: stream_statistics, acquisition; 1.2: camera frame ids.
+// 1.1: stream_statistics, acquisition; 1.2: camera frame ids; 1.3: linear frames, noise fields.
+constexpr int kSessionFormatMinor = 3;
 constexpr char kSessionManifestName[] = "session.json";
 // Largest board distance (sample to board/screen) any rig, fit or simulation accepts: a shadow
 // map or laser lobe spreads over millimetres to centimetres; 1e308 m overflowed the projection.
@@ -39,6 +40,16 @@ struct CameraInfo {
   double black_level_dn = 0;       // Subtracted before any radiometry.
   double saturation_dn = 0;        // Values >= this are saturated (raw DN, before black level).
   double gain_e_per_dn = 0;        // Conversion gain; 0 if unknown.
+  // "raw" (default): frames hold the sensor's raw DN. "linear": frames hold values already
+  // linear in radiance (an HDR tool's merged frames, a renderer's output): float EXR
+  // (bit_depth 32), no camera response, saturation_dn optional (absent = +infinity, nothing
+  // saturates) and frame exposures optional (default 1 us). Format 1.3.
+  std::string frame_values = "raw";
+  // RMS noise of a frame value at zero signal (read noise) in the frames' units; absent =
+  // unknown (dark frames or the data give it). With gain_e_per_dn it declares the noise model
+  // var(v) = read_noise_dn^2 + max(v, 0) / gain_e_per_dn. Format 1.3.
+  std::optional<double> read_noise_dn;
+  bool linear_frames() const { return frame_values == "linear"; }
   // Optional transport statistics of the capture (name -> count or value), e.g.
   // "completed_buffers", "failed_buffers", "missing_packets", "resent_packets", "timeouts",
   // "packet_size_bytes" from Camera::statistics(); empty for simulated or imported captures.
@@ -111,6 +122,9 @@ struct FrameRecord {
   std::string sample_state = "none";  // "contaminated", "clean", "none".
   std::string file;           // Relative to the session folder; "" when status is failed.
   double exposure_time_us = 0;  // Exposure the camera reported applying.
+  // Optional per-pixel variance of the frame's values (an EXR of the frame's size, the frame's
+  // units squared, before dividing by the exposure); "" = none. Format 1.3.
+  std::string variance_file;
   double gain_db = 0;
   LightState light;
   std::string timestamp_utc;  // ISO 8601.

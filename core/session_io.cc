@@ -90,6 +90,12 @@ const std::vector<std::string>& ContaminantSides() {
   static const std::vector<std::string> names = {"board", "projector"};
   return names;
 }
+const std::vector<std::string>& FrameValueKinds() {
+  static const std::vector<std::string> names = {"raw", "linear"};
+  return names;
+}
+// A frame's exposure_time_us while parsing, before ReadSession knows its camera.
+constexpr double kExposureAbsent = std::numeric_limits<double>::quiet_NaN();
 const std::vector<std::string>& ProjectorKinds() {
   static const std::vector<std::string> names = {"collimated", "pinhole"};
   return names;
@@ -409,12 +415,23 @@ Status ManifestParser::ParseCamera(const Json& j, const std::string& path,
   THINSLAB_RETURN_IF_ERROR(
       Rigid(j, path, "cam_from_sample", Need::kRequired, &camera->cam_from_sample));
   THINSLAB_RETURN_IF_ERROR(Int(j, path, "bit_depth", Need::kRequired, &camera->bit_depth));
+  THINSLAB_RETURN_IF_ERROR(String(j, path, "frame_values", Need::kOptional, &camera->frame_values));
   THINSLAB_RETURN_IF_ERROR(
       Number(j, path, "black_level_dn", Need::kOptional, &camera->black_level_dn));
-  THINSLAB_RETURN_IF_ERROR(
-      Number(j, path, "saturation_dn", Need::kRequired, &camera->saturation_dn));
+  // Linear frames need no saturation level: absent means nothing saturates.
+  if (camera->linear_frames()) camera->saturation_dn = std::numeric_limits<double>::infinity();
+  THINSLAB_RETURN_IF_ERROR(Number(j, path, "saturation_dn",
+                                  camera->linear_frames() ? Need::kOptional : Need::kRequired,
+                                  &camera->saturation_dn));
   THINSLAB_RETURN_IF_ERROR(
       Number(j, path, "gain_e_per_dn", Need::kOptional, &camera->gain_e_per_dn));
+  double read_noise = 0;
+  const Json* read_noise_json = nullptr;
+  THINSLAB_RETURN_IF_ERROR(Find(j, path, "read_noise_dn", Need::kOptional, &read_noise_json));
+  if (read_noise_json != nullptr) {
+    THINSLAB_RETURN_IF_ERROR(NumberValue(*read_noise_json, Child(path, "read_noise_dn"), &read_noise));
+    camera->read_noise_dn = read_noise;
+  }
   // Optional {"name": number, ...}; absent in manifests written before it existed.
   const Json* stats = nullptr;
   THINSLAB_RETURN_IF_ERROR(Object(j, path, "stream_statistics", Need::kOptional, &stats));
@@ -515,8 +532,11 @@ Status ManifestParser::ParseFrame(const Json& j, const std::string& path,
   frame->sample_state = "none";
   THINSLAB_RETURN_IF_ERROR(String(j, path, "sample_state", Need::kOptional, &frame->sample_state));
   THINSLAB_RETURN_IF_ERROR(String(j, path, "file", Need::kRequired, &frame->file));
+  THINSLAB_RETURN_IF_ERROR(String(j, path, "variance_file", Need::kOptional, &frame->variance_file));
+  // Optional for linear frames (ReadSession gives them 1 us); NaN marks it absent here.
+  frame->exposure_time_us = kExposureAbsent;
   THINSLAB_RETURN_IF_ERROR(
-      Number(j, path, "exposure_time_us", Need::kRequired, &frame->exposure_time_us));
+      Number(j, path, "exposure_time_us", Need::kOptional, &frame->exposure_time_us));
   THINSLAB_RETURN_IF_ERROR(Number(j, path, "gain_db", Need::kOptional, &frame->gain_db));
 
   const Json* light = nullptr;
@@ -621,6 +641,16 @@ Status ManifestParser::Parse(const Json& root, Session* session) const {
   session->frames.assign(frames->size(), FrameRecord());
   for (size_t i = 0; i < frames->size(); ++i) {
     THINSLAB_RETURN_IF_ERROR(ParseFrame((*frames)[i], Element("frames", i), &session->frames[i]));
+    FrameRecord& frame = session->frames[i];
+    const CameraInfo* camera = session->FindCamera(frame.camera_id);
+    if (std::isnan(frame.exposure_time_us)) {
+      if (camera != nullptr && camera->linear_frames()) {
+        frame.exposure_time_us = 1.0;
+      } else {
+        return Error(Element("frames", i) + ".exposure_time_us",
+                     "missing; it is required unless the frame's camera declares frame_values \"linear\"");
+      }
+    }
   }
   const Json* acquisition = nullptr;
   THINSLAB_RETURN_IF_ERROR(Object(root, "", "acquisition", Need::kOptional, &acquisition));
@@ -651,6 +681,7 @@ OrderedJson FrameToJson(const FrameRecord& f) {
   fj["kind"] = f.kind;
   fj["sample_state"] = f.sample_state;
   fj["file"] = f.file;
+  if (!f.variance_file.empty()) fj["variance_file"] = f.variance_file;
   fj["exposure_time_us"] = f.exposure_time_us;
   fj["gain_db"] = f.gain_db;
   OrderedJson light = OrderedJson::object();
@@ -695,9 +726,11 @@ OrderedJson SessionToJson(const Session& session) {
     for (double d : c.distortion) cj["distortion"].push_back(d);
     cj["cam_from_sample"] = RigidToJson(c.cam_from_sample);
     cj["bit_depth"] = c.bit_depth;
+    if (c.linear_frames()) cj["frame_values"] = c.frame_values;
     cj["black_level_dn"] = c.black_level_dn;
-    cj["saturation_dn"] = c.saturation_dn;
+    if (std::isfinite(c.saturation_dn)) cj["saturation_dn"] = c.saturation_dn;
     cj["gain_e_per_dn"] = c.gain_e_per_dn;
+    if (c.read_noise_dn.has_value()) cj["read_noise_dn"] = *c.read_noise_dn;
     if (!c.stream_statistics.empty()) {
       OrderedJson stats = OrderedJson::object();
       for (const auto& [name, value] : c.stream_statistics) stats[name] = value;
@@ -947,10 +980,27 @@ Status ValidateSession(const Session& session, const std::string& session_dir) {
       }
     } else {
       if (!std::isfinite(c.black_level_dn)) return error(p + ".black_level_dn", "must be finite");
-      if (!std::isfinite(c.saturation_dn)) return error(p + ".saturation_dn", "must be finite");
+      // Linear frames without a saturation level hold +infinity (nothing saturates).
+      if (!std::isfinite(c.saturation_dn) && !(c.linear_frames() && c.saturation_dn > 0)) {
+        return error(p + ".saturation_dn", "must be finite");
+      }
     }
-    if (!(c.gain_e_per_dn >= 0)) {
+    if (!Contains(FrameValueKinds(), c.frame_values)) {
+      return error(p + ".frame_values", "must be " + OneOf(FrameValueKinds()) + ", got " + Quote(c.frame_values));
+    }
+    if (c.linear_frames() && c.bit_depth != 32) {
+      return error(p + ".frame_values", "\"linear\" frames are float EXR frames and need bit_depth 32, got " +
+                                            std::to_string(c.bit_depth));
+    }
+    if (c.linear_frames() && !(c.saturation_dn > c.black_level_dn)) {
+      return error(p + ".saturation_dn", "must be > black_level_dn (" + Num(c.black_level_dn) + "), got " +
+                                             Num(c.saturation_dn));
+    }
+    if (!(c.gain_e_per_dn >= 0) || !std::isfinite(c.gain_e_per_dn)) {
       return error(p + ".gain_e_per_dn", "must be >= 0 (0 = unknown), got " + Num(c.gain_e_per_dn));
+    }
+    if (c.read_noise_dn.has_value() && !(*c.read_noise_dn >= 0 && std::isfinite(*c.read_noise_dn))) {
+      return error(p + ".read_noise_dn", "must be >= 0 (absent = unknown), got " + Num(*c.read_noise_dn));
     }
   }
 
@@ -1089,6 +1139,13 @@ Status ValidateSession(const Session& session, const std::string& session_dir) {
     std::string resolved;
     const std::string reason = ResolveFrameFile(session_dir, f.file, &resolved);
     if (!reason.empty()) return error(p + ".file", reason + " (status " + FrameStatusName(f.status) + ")");
+    if (!f.variance_file.empty()) {
+      if (Lowercase(fs::path(f.variance_file).extension().string()) != ".exr") {
+        return error(p + ".variance_file", "must be an .exr file, got " + Quote(f.variance_file));
+      }
+      const std::string variance_reason = ResolveFrameFile(session_dir, f.variance_file, &resolved);
+      if (!variance_reason.empty()) return error(p + ".variance_file", variance_reason);
+    }
   }
   if (session.acquisition.present) {
     const AcquisitionInfo& acq = session.acquisition;
@@ -1120,8 +1177,12 @@ std::string SummarizeSession(const Session& session) {
         << (c.bit_depth == 32 ? std::string("float") : std::to_string(c.bit_depth) + "-bit")
         << ", fx " << Num(c.fx_px) << " px, fy " << Num(c.fy_px) << " px, model " << c.model;
     if (!c.serial.empty()) out << ", serial " << c.serial;
-    out << ", black " << Num(c.black_level_dn) << " DN, saturation " << Num(c.saturation_dn)
-        << " DN\n";
+    if (c.linear_frames()) out << ", linear frames";
+    out << ", black " << Num(c.black_level_dn) << " DN, saturation "
+        << (std::isfinite(c.saturation_dn) ? Num(c.saturation_dn) + " DN" : std::string("none"));
+    out << ", gain " << (c.gain_e_per_dn > 0 ? Num(c.gain_e_per_dn) + " e/DN" : std::string("unknown"));
+    if (c.read_noise_dn.has_value()) out << ", read noise " << Num(*c.read_noise_dn) << " DN";
+    out << "\n";
   }
   const SampleInfo& s = rig.sample;
   out << "Sample region: [" << Num(s.region_min_m.x()) << ", " << Num(s.region_max_m.x()) << "] x ["
@@ -1225,7 +1286,66 @@ class ScopedSilenceStderr {
   int saved_ = -1;
 };
 
+// One EXR frame file (the frame or its variance): channel "Y" or its only channel, the camera's
+// size, finite values.
+Status ReadFrameExr(const std::string& path, const CameraInfo& camera, Image* out) {
+  Image exr;
+  THINSLAB_RETURN_IF_ERROR(ReadExr(path, &exr));
+  int c = exr.ChannelIndex("Y");
+  if (c < 0 && exr.num_channels() == 1) c = 0;
+  if (c < 0) {
+    std::string names;
+    for (const auto& n : exr.channel_names()) names += (names.empty() ? "" : ", ") + n;
+    return Status::Error(path + ": no channel \"Y\" and more than one channel (" + names +
+                         "); frame EXRs hold one linear channel named \"Y\"");
+  }
+  const int w = camera.width_px, h = camera.height_px;
+  if (exr.width() != w || exr.height() != h) {
+    return Status::Error(path + ": image is " + std::to_string(exr.width()) + "x" + std::to_string(exr.height()) +
+                         " px but camera " + camera.id + " is " + std::to_string(w) + "x" + std::to_string(h) + " px");
+  }
+  *out = Image(w, h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const float v = exr.at(x, y, c);
+      if (!std::isfinite(v)) {
+        return Status::Error(path + ": non-finite value at pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                             ")");
+      }
+      out->at(x, y) = v;
+    }
+  }
+  return Status::Ok();
+}
+
 }  // namespace
+
+Status LoadFrameVariance(const std::string& session_dir, const Session& session, const FrameRecord& frame,
+                         Image* variance) {
+  *variance = Image();
+  if (frame.variance_file.empty()) return Status::Ok();
+  const std::string frame_name = "frame " + std::to_string(frame.index);
+  const CameraInfo* camera = session.FindCamera(frame.camera_id);
+  if (camera == nullptr) {
+    return Status::Error(ManifestPath(session_dir) + ": " + frame_name + ": unknown camera id " +
+                         Quote(frame.camera_id));
+  }
+  std::string path;
+  const std::string reason = ResolveFrameFile(session_dir, frame.variance_file, &path);
+  if (!reason.empty()) {
+    return Status::Error(JoinPath(session_dir, frame.variance_file) + ": " + frame_name + " variance_file: " + reason);
+  }
+  THINSLAB_RETURN_IF_ERROR(ReadFrameExr(path, *camera, variance));
+  for (size_t i = 0; i < variance->data().size(); ++i) {
+    if (variance->data()[i] < 0) {
+      const int w = camera->width_px;
+      return Status::Error(path + ": " + frame_name + " variance_file: negative variance " +
+                           Num(variance->data()[i]) + " at pixel (" + std::to_string(i % w) + ", " +
+                           std::to_string(i / w) + ")");
+    }
+  }
+  return Status::Ok();
+}
 
 Status LoadFrame(const std::string& session_dir, const Session& session, const FrameRecord& frame,
                  Image* image_dn) {
@@ -1255,29 +1375,8 @@ Status LoadFrame(const std::string& session_dir, const Session& session, const F
   const std::string ext = Lowercase(fs::path(frame.file).extension().string());
 
   if (ext == ".exr") {
-    Image exr;
-    THINSLAB_RETURN_IF_ERROR(ReadExr(path, &exr));
-    int c = exr.ChannelIndex("Y");
-    if (c < 0 && exr.num_channels() == 1) c = 0;
-    if (c < 0) {
-      std::string names;
-      for (const auto& n : exr.channel_names()) names += (names.empty() ? "" : ", ") + n;
-      return Status::Error(path + ": no channel \"Y\" and more than one channel (" + names +
-                           "); frame EXRs hold one linear channel named \"Y\"");
-    }
-    if (exr.width() != w || exr.height() != h) return size_error(exr.width(), exr.height());
-    Image out(w, h);
-    for (int y = 0; y < h; ++y) {
-      for (int x = 0; x < w; ++x) {
-        const float v = exr.at(x, y, c);
-        if (!std::isfinite(v)) {
-          return Status::Error(path + ": non-finite value at pixel (" + std::to_string(x) + ", " +
-                               std::to_string(y) + ")");
-        }
-        out.at(x, y) = static_cast<float>(static_cast<double>(v) - black);
-      }
-    }
-    *image_dn = std::move(out);
+    THINSLAB_RETURN_IF_ERROR(ReadFrameExr(path, *camera, image_dn));
+    for (float& v : image_dn->data()) v = static_cast<float>(static_cast<double>(v) - black);
     return Status::Ok();
   }
 

@@ -292,7 +292,7 @@ TEST_F(SessionIoTest, WritesTheDocumentedLayout) {
   ASSERT_TRUE(ReadFileToString(manifest(), &text).ok());
   const nlohmann::json j = nlohmann::json::parse(text);
   EXPECT_EQ(j["format"], "thinslab-session");
-  EXPECT_EQ(j["format_version"], "1.2");
+  EXPECT_EQ(j["format_version"], "1.3");
   EXPECT_EQ(j["rig"]["cameras"][0]["cam_from_sample"]["rotation_wxyz"].size(), 4u);
   EXPECT_EQ(j["rig"]["cameras"][0]["cam_from_sample"]["translation_m"].size(), 3u);
   EXPECT_EQ(j["frames"][0]["camera"], "cam0");

@@ -276,6 +276,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   // 2-3. One dot at a time: merge, rectify, Eq. 12.
   t = std::chrono::steady_clock::now();
   const auto darks = session.UsableFrames("dark", sample_state);
+  THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(session_dir, session, camera, &report->noise));
   THINSLAB_RETURN_IF_ERROR(MeasureDarkLevel(session_dir, session, camera, darks, rectifier, report));
   // A of Eq. 12 with the dot radius L_q was measured with (L_q A is the dot's intensity).
   const double dot_radius_px = calibrated.present ? calibrated.dot_radius_px : options.dot_radius_px;
@@ -288,7 +289,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     SessionMergeInfo info;
     const bool check = q % check_stride == 0;
     THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, darks, response,
-                                                 HdrMergeOptions(), 1.0, &hdr, &info,
+                                                 HdrMergeOptions(), 1.0, report->noise, &hdr, &info,
                                                  check ? ExposureCheckMode::kCheck : ExposureCheckMode::kNone)
                                  .WithContext(DotName(displayed[q])));
     if (check) CombineExposureChecks(info.exposure_check, &report->exposure_check);  // One bracket for all dots.

@@ -21,6 +21,7 @@
 
 #include "calib/dot_geometry.h"
 #include "calib/exposure_check.h"
+#include "calib/frame_noise.h"
 #include "calib/session_calibration.h"
 #include "core/session_recovery.h"
 #include "core/status.h"
@@ -76,6 +77,7 @@ struct DmfProcessingReport {
   SessionCalibration calibration;  // What was applied.
   std::string dot_geometry_source;  // The all-dots frame used, or the rig.json file.
   CaptureCompleteness capture;      // What was read.
+  FrameNoiseModel noise;            // Of the dot frames (calib/frame_noise.h), in summary.json.
 };
 
 inline constexpr double kMaxDarkFractionOfRange = 0.2;

@@ -118,10 +118,7 @@ Status SynthesizeBracketSession(const BracketSimOptions& options, const std::str
   camera.cx_px = 0.5 * options.width_px - 0.5;
   camera.cy_px = 0.5 * options.height_px - 0.5;
   camera.cam_from_sample.translation = Eigen::Vector3d(0, 0, 0.5);
-  camera.bit_depth = sensor.bit_depth;
-  camera.black_level_dn = sensor.black_level_dn;
-  camera.saturation_dn = sensor.saturation_dn();
-  camera.gain_e_per_dn = sensor.response == SimResponseCurve::kLinear ? sensor.gain_e_per_dn() : 0.0;
+  sensor.DescribeCamera(&camera, sensor.response == SimResponseCurve::kLinear);
   rig.cameras.push_back(camera);
   rig.sample.region_min_m = Eigen::Vector2d(-0.01, -0.01);
   rig.sample.region_max_m = Eigen::Vector2d(0.01, 0.01);

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace thinslab {
@@ -21,6 +22,8 @@ bool SimSensorOptions::Check(std::string* error) const {
     msg << "SimSensorOptions::black_level_dn = " << black_level_dn << ". Violated constraint: [0, 2^bit_depth / 2)";
   } else if (!(exposure_step_us > 0 && std::isfinite(exposure_step_us))) {
     msg << "SimSensorOptions::exposure_step_us = " << exposure_step_us << ". Violated constraint: > 0";
+  } else if (!(value_scale > 0 && value_scale < 1e30)) {
+    msg << "SimSensorOptions::value_scale = " << value_scale << ". Violated constraint: (0, 1e30)";
   } else if (!std::isfinite(exposure_offset_us) || !(exposure_offset_us > -exposure_step_us)) {
     msg << "SimSensorOptions::exposure_offset_us = " << exposure_offset_us
         << ". Violated constraint: finite and > -exposure_step_us";
@@ -83,6 +86,21 @@ double SimSensorOptions::InverseResponseCurve(double v) const {
   return 0.5 * (lo + hi);
 }
 
+void SimSensorOptions::DescribeCamera(CameraInfo* camera, bool declare_gain) const {
+  if (linear_float_frames) {
+    camera->bit_depth = 32;
+    camera->frame_values = "linear";
+    camera->black_level_dn = 0;
+    camera->saturation_dn = std::numeric_limits<double>::infinity();
+    camera->gain_e_per_dn = 1 / value_scale;
+    return;
+  }
+  camera->bit_depth = bit_depth;
+  camera->black_level_dn = black_level_dn;
+  camera->saturation_dn = saturation_dn();
+  camera->gain_e_per_dn = declare_gain ? gain_e_per_dn() : 0.0;
+}
+
 Image ApplySensor(const Image& electrons, const SimSensorOptions& options, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal(0.0, 1.0);
@@ -98,6 +116,10 @@ Image ApplySensor(const Image& electrons, const SimSensorOptions& options, uint6
         e += std::sqrt(e) * normal(rng);
       }
       e += options.read_noise_e * normal(rng);
+    }
+    if (options.linear_float_frames) {
+      raw.data()[i] = static_cast<float>(e * options.value_scale);
+      continue;
     }
     // The response acts on the collected signal (after shot and read noise), as a camera's
     // analogue/digital tone curve does; quantisation follows it.

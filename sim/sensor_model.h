@@ -9,6 +9,7 @@
 #include <string>
 
 #include "core/image.h"
+#include "core/session.h"
 
 namespace thinslab {
 
@@ -47,6 +48,14 @@ struct SimSensorOptions {
   // reports (a reset or frame-transfer time; negative: shorter). 0 by default. For testing the
   // exposure check (calib/exposure_check.h).
   double exposure_offset_us = 0;
+  // What an HDR tool or a renderer writes instead of a raw sensor's frames (issue #23): each
+  // value is the collected electrons (shot and read noise) times value_scale, as a float with
+  // no quantisation, clipping or black level, stored as float EXR with frame_values "linear".
+  // The simulated camera knows its gain (1 / value_scale e- per value) for display
+  // synchronisation; the capture's manifest declares none (OpenSimulatedSession), as such
+  // programs do not.
+  bool linear_float_frames = false;
+  double value_scale = 1;  // Values per electron; > 0.
 
   // v = f(s) for the configured curve: f(0) = 0, f(1) = 1, strictly increasing on [0, 1],
   // continued linearly below 0 (noise under black) with the slope at 0.
@@ -60,6 +69,12 @@ struct SimSensorOptions {
   double IntegratedExposureUs(double requested_us) const { return AppliedExposureUs(requested_us) + exposure_offset_us; }
 
   double gain_e_per_dn() const { return full_well_e / ((1 << bit_depth) - 1 - black_level_dn); }
+  // The camera fields this sensor determines: bit depth, black level, saturation, gain and
+  // frame values (raw DN, or linear floats). `declare_gain` = false leaves the gain unknown (0)
+  // for raw frames, as for a nonlinear response.
+  void DescribeCamera(CameraInfo* camera, bool declare_gain = true) const;
+  // The sensor's read noise and a change of `dn` raw DN, in the units of its frames.
+  double FrameValuesPerDn() const { return linear_float_frames ? value_scale * gain_e_per_dn() : 1.0; }
   double saturation_dn() const { return (1 << bit_depth) - 1; }
   bool Check(std::string* error) const;
 };

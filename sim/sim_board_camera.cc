@@ -28,10 +28,7 @@ CameraInfo MakeObliqueBoardCamera(int width_px, int height_px, const Eigen::Vect
 SimBoardCamera::SimBoardCamera(const SimBoardCameraOptions& options, IrradianceFn irradiance)
     : options_(options), info_(options.info), irradiance_(std::move(irradiance)),
       exposure_us_(options.initial_exposure_us) {
-  info_.bit_depth = options.sensor.bit_depth;
-  info_.black_level_dn = options.sensor.black_level_dn;
-  info_.saturation_dn = options.sensor.saturation_dn();
-  info_.gain_e_per_dn = options.sensor.gain_e_per_dn();
+  options.sensor.DescribeCamera(&info_);
 }
 
 Status SimBoardCamera::SetExposure(double requested_us, double* applied_us) {

@@ -117,10 +117,7 @@ SimDotMonitor::SimDotMonitor(const SimDotMonitorOptions& options)
   cam.model = "sim";
   cam.serial = "sim-dot-monitor";
   cam.distortion = o.camera_distortion;
-  cam.bit_depth = o.sensor.bit_depth;
-  cam.black_level_dn = o.sensor.black_level_dn;
-  cam.saturation_dn = o.sensor.saturation_dn();
-  cam.gain_e_per_dn = o.sensor.gain_e_per_dn();
+  o.sensor.DescribeCamera(&cam);
   camera_ = std::make_unique<SimCamera>(this, cam, o.initial_exposure_us);
 }
 

@@ -26,6 +26,10 @@ inline Status OpenSimulatedSession(const std::string& session_dir, const std::st
   header.kind = kind;
   header.software = std::string("thinslab ") + THINSLAB_VERSION_STRING + " sim (" + THINSLAB_GIT_HASH + ")";
   header.rig = rig;
+  // Programs that write linear frames (HDR tools, renderers) declare no gain.
+  for (CameraInfo& camera : header.rig.cameras) {
+    if (camera.linear_frames()) camera.gain_e_per_dn = 0;
+  }
   return writer->Open(session_dir, header);
 }
 
@@ -35,6 +39,12 @@ inline Status OpenSimulatedSession(const std::string& session_dir, const std::st
 // it, two frames of the same state of a very noisy sensor would never agree and a settle never
 // be confirmed.
 inline DisplaySyncOptions SyncForSensor(DisplaySyncOptions sync, const SimSensorOptions& sensor) {
+  if (sensor.linear_float_frames) {  // The options' DN thresholds in the frames' units.
+    sync.min_change_dn *= sensor.FrameValuesPerDn();
+    sync.read_noise_dn = std::max(sync.read_noise_dn * sensor.FrameValuesPerDn(),
+                                  sensor.enable_noise ? sensor.read_noise_e * sensor.value_scale : 0.0);
+    return sync;
+  }
   if (!sensor.enable_noise) return sync;
   const double sigma = sensor.read_noise_e / sensor.full_well_e;  // Fraction of full scale.
   const double full_scale_dn = sensor.saturation_dn() - sensor.black_level_dn;
