@@ -362,6 +362,8 @@ int RunCalibHdr(int argc, char** argv) {
       char deviation[32];
       std::snprintf(deviation, sizeof(deviation), "%.2f", 100 * check.max_deviation);
       std::cout << "largest deviation " << deviation << " %\n";
+    } else if (info.num_exposures < 2) {
+      std::cout << "not applicable (one exposure)\n";
     } else {
       std::cout << "not measured (too few well-exposed pixels)\n";
     }

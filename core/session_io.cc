@@ -416,6 +416,9 @@ Status ManifestParser::ParseCamera(const Json& j, const std::string& path,
       Rigid(j, path, "cam_from_sample", Need::kRequired, &camera->cam_from_sample));
   THINSLAB_RETURN_IF_ERROR(Int(j, path, "bit_depth", Need::kRequired, &camera->bit_depth));
   THINSLAB_RETURN_IF_ERROR(String(j, path, "frame_values", Need::kOptional, &camera->frame_values));
+  if (!Contains(FrameValueKinds(), camera->frame_values)) {  // Before the fields it makes optional.
+    return Error(Child(path, "frame_values"), "must be " + OneOf(FrameValueKinds()) + ", got " + Quote(camera->frame_values));
+  }
   THINSLAB_RETURN_IF_ERROR(
       Number(j, path, "black_level_dn", Need::kOptional, &camera->black_level_dn));
   // Linear frames need no saturation level: absent means nothing saturates.

@@ -24,6 +24,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using ::testing::AllOf;
+using ::testing::AnyOf;
 using ::testing::HasSubstr;
 
 constexpr int kWidth = 16;
@@ -474,6 +475,93 @@ TEST(SessionIoHandWritten, ManifestFollowingTheDocumentLoads) {
   EXPECT_THAT(summary, AllOf(HasSubstr("example"), HasSubstr("cam0"), HasSubstr("16x12"),
                              HasSubstr("format_version 1.3"), HasSubstr("Board: present"),
                              HasSubstr("Laser: absent"), HasSubstr("shadow / contaminated: 1")));
+  fs::remove_all(dir);
+}
+
+// Format 1.3: frames another program wrote already linear (a renderer's EXR output), one
+// exposure, no saturation, no exposure time, no gain; a per-pixel variance file.
+TEST(SessionIoHandWritten, LinearFramesNeedOnlyTheirOwnFields) {
+  const std::string dir = MakeTempDir();
+  auto manifest = [](const std::string& camera_extra, const std::string& frame_extra) {
+    return R"({"format": "thinslab-session", "format_version": "1.3", "name": "render", "kind": "shadow_map",
+  "created_utc": "2024-05-01T12:00:00Z",
+  "rig": {"cameras": [{"id": "cam0", "model": "renderer", "width_px": 8, "height_px": 6,
+      "fx_px": 1200, "fy_px": 1200, "cx_px": 3.5, "cy_px": 2.5,
+      "cam_from_sample": {"rotation_wxyz": [1, 0, 0, 0], "translation_m": [0, 0, 0.25]},
+      "bit_depth": 32, "frame_values": "linear")" + camera_extra + R"(}],
+    "sample": {"region_min_m": [-0.01, -0.01], "region_max_m": [0.01, 0.01], "pixel_pitch_m": 0.0001},
+    "board": {"distance_m": 0.004, "albedo": 0.9},
+    "projector": {"kind": "collimated", "direction_in_sample": [0, 0, -1]}},
+  "frames": [{"index": 0, "camera": "cam0", "kind": "shadow", "sample_state": "contaminated",
+     "file": "frames/0.exr", "light": {"projector_pattern": "flat", "laser_on": false},
+     "timestamp_utc": "2024-05-01T12:00:01Z", "status": "ok")" + frame_extra + "}]}";
+  };
+  ASSERT_TRUE(CreateDirectories(JoinPath(dir, "frames")).ok());
+  Image frame(8, 6, 0.125f), variance(8, 6, 0.0025f);
+  ASSERT_TRUE(WriteExr(JoinPath(dir, "frames/0.exr"), frame).ok());
+  ASSERT_TRUE(WriteExr(JoinPath(dir, "frames/0_var.exr"), variance).ok());
+
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(dir, "session.json"), manifest("", R"(, "variance_file": "frames/0_var.exr")")).ok());
+  Session s;
+  Status status = ReadSession(dir, &s);
+  ASSERT_TRUE(status.ok()) << status.message();
+  const CameraInfo& c = s.rig.cameras[0];
+  EXPECT_TRUE(c.linear_frames());
+  EXPECT_TRUE(std::isinf(c.saturation_dn));  // Absent: nothing saturates.
+  EXPECT_FALSE(c.read_noise_dn.has_value());
+  EXPECT_EQ(s.frames[0].exposure_time_us, 1.0);  // Absent: 1 us, the frames' own units.
+  Image loaded, loaded_variance;
+  ASSERT_TRUE(LoadFrame(dir, s, s.frames[0], &loaded).ok());
+  EXPECT_EQ(loaded.at(2, 3), 0.125f);
+  status = LoadFrameVariance(dir, s, s.frames[0], &loaded_variance);
+  ASSERT_TRUE(status.ok()) << status.message();
+  EXPECT_EQ(loaded_variance.at(2, 3), 0.0025f);
+  EXPECT_THAT(SummarizeSession(s), AllOf(HasSubstr("linear frames"), HasSubstr("saturation none")));
+  // Written back, the optional fields stay absent and the manifest reads the same.
+  const std::string copy = MakeTempDir();
+  ASSERT_TRUE(WriteSession(copy, s).ok());
+  std::string text;
+  ASSERT_TRUE(ReadFileToString(JoinPath(copy, "session.json"), &text).ok());
+  const nlohmann::json written = nlohmann::json::parse(text);
+  EXPECT_EQ(written["rig"]["cameras"][0]["frame_values"], "linear");
+  EXPECT_FALSE(written["rig"]["cameras"][0].contains("saturation_dn"));
+  EXPECT_EQ(written["frames"][0]["variance_file"], "frames/0_var.exr");
+  fs::remove_all(copy);
+
+  // A declared noise model reads back; bad values are named by field.
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(dir, "session.json"),
+                                  manifest(R"(, "read_noise_dn": 0.01, "gain_e_per_dn": 4000)", "")).ok());
+  ASSERT_TRUE(ReadSession(dir, &s).ok());
+  EXPECT_EQ(s.rig.cameras[0].read_noise_dn.value_or(-1), 0.01);
+  const std::pair<std::string, std::string> bad[] = {
+      {R"(, "read_noise_dn": -1)", "read_noise_dn"},
+      {R"(, "frame_values": "srgb")", "frame_values"},
+  };
+  for (const auto& [extra, field] : bad) {
+    ASSERT_TRUE(WriteFileAtomically(JoinPath(dir, "session.json"), manifest(extra, "")).ok());
+    status = ReadSession(dir, &s);
+    EXPECT_FALSE(status.ok()) << extra;
+    EXPECT_THAT(status.message(), HasSubstr(field)) << extra;
+  }
+  // Raw frames still need an exposure and a saturation level.
+  std::string raw = manifest("", "");
+  raw.replace(raw.find(R"("bit_depth": 32, "frame_values": "linear")"), 41, R"("bit_depth": 32)");
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(dir, "session.json"), raw).ok());
+  status = ReadSession(dir, &s);
+  EXPECT_FALSE(status.ok());
+  EXPECT_THAT(status.message(), AnyOf(HasSubstr("exposure_time_us"), HasSubstr("saturation_dn")));
+  // A variance file that is not an EXR, or holds a negative variance, is refused by name.
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(dir, "session.json"), manifest("", R"(, "variance_file": "frames/0.png")")).ok());
+  status = ReadSession(dir, &s);
+  EXPECT_FALSE(status.ok());
+  EXPECT_THAT(status.message(), HasSubstr("variance_file"));
+  variance.at(1, 1) = -1;
+  ASSERT_TRUE(WriteExr(JoinPath(dir, "frames/0_var.exr"), variance).ok());
+  ASSERT_TRUE(WriteFileAtomically(JoinPath(dir, "session.json"), manifest("", R"(, "variance_file": "frames/0_var.exr")")).ok());
+  ASSERT_TRUE(ReadSession(dir, &s).ok());
+  status = LoadFrameVariance(dir, s, s.frames[0], &loaded_variance);
+  EXPECT_FALSE(status.ok());
+  EXPECT_THAT(status.message(), AllOf(HasSubstr("0_var.exr"), HasSubstr("negative variance")));
   fs::remove_all(dir);
 }
 

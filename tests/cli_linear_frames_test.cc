@@ -75,7 +75,9 @@ TEST(LinearFrames, ShadowMapFitIsInvariantToTheValueScale) {
     const std::string capture = dir / ("capture" + std::to_string(k));
     RunOk("sim shadow-maps " + capture + " --linear-float-frames true --value-scale " + (k ? "1000" : "1") +
         " --camera-width-px 320 --camera-height-px 240 --photons 20000 --frames 1 --dark-frames 0");
-    RunOk("info " + capture);
+    const RunResult info = RunThinslab("info " + capture);
+    EXPECT_EQ(info.exit_code, 0) << info.output;
+    EXPECT_EQ(info.output.find("warning"), std::string::npos) << info.output;  // Linear: nothing clips.
     RunOk("fit tau " + capture + " --out " + (dir / ("tau" + std::to_string(k))));
     summary[k] = ReadJson(dir / ("tau" + std::to_string(k)) + "/summary.json");
     ASSERT_TRUE(ReadExr(dir / ("tau" + std::to_string(k)) + "/tau.exr", &maps[k]).ok());
@@ -119,6 +121,11 @@ TEST(LinearFrames, LaserLobeFromOneLinearExposureIsInvariantToTheValueScale) {
 
   const std::string raw = dir / "raw";
   RunOk("sim laser " + raw + " --exposures-us 20000 --camera-width-px 240 --camera-height-px 180 --photons 20000");
+  const RunResult info = RunThinslab("info " + raw);
+  EXPECT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find("warning: cam0 'laser': 2 light state(s) have a single exposure and saturated pixels"),
+            std::string::npos)
+      << info.output;
   const RunResult refused = RunThinslab("fit phase " + raw + " --out " + (dir / "raw_phase"));
   EXPECT_NE(refused.exit_code, 0);
   EXPECT_NE(refused.output.find("single exposure_time_us"), std::string::npos) << refused.output;
