@@ -84,13 +84,23 @@ SampleChanger SimLaserLobeRig::sample_changer() {
   };
 }
 
+namespace {
+
+// Irradiance of a Gaussian beam of 1/e^2 radius w at squared distance r2 from its axis,
+// 2 exp(-2 r^2 / w^2): the power pi w^2 of a uniform disc of radius w at irradiance 1, so the lobe
+// keeps the brightness the earlier disc beam gave it.
+double GaussianBeam(double r2, double w) { return 2 * std::exp(-2 * r2 / (w * w)); }
+
+}  // namespace
+
 double SimLaserLobeRig::BoardIrradiance(double x_m, double y_m) const {
   double e = flat_on_ ? flat_irradiance_ : 0.0;
   if (!laser_on_ || sample_state_ == "none") return e;
   const bool contaminated = sample_state_ == "contaminated";
-  // Unscattered beam (Gu Eq. 5), a sharp disc.
+  // Unscattered beam (Gu Eq. 5): a Gaussian beam whose 1/e^2 intensity radius is beam_radius_m
+  // (as rig.laser.beam_radius_m is documented, docs/format.md).
   const Eigen::Vector2d d = Eigen::Vector2d(x_m, y_m) - options_.beam_offset_m;
-  if (d.norm() <= options_.beam_radius_m) e += contaminated ? std::exp(-options_.layer_tau) : 1.0;
+  e += (contaminated ? std::exp(-options_.layer_tau) : 1.0) * GaussianBeam(d.squaredNorm(), options_.beam_radius_m);
   if (contaminated) {
     const double gx = (x_m - grid_min_m_.x()) / options_.pixel_pitch_m;
     const double gy = (y_m - grid_min_m_.y()) / options_.pixel_pitch_m;
@@ -111,19 +121,19 @@ Status SimLaserLobeRig::Create(const SimLaserLobeOptions& options, std::unique_p
   const int n = 2 * half_px + 1;
   rig->grid_min_m_ = Eigen::Vector2d(-(half_px + 0.5) * p, -(half_px + 0.5) * p);
 
-  // Beam footprint: fraction of each grid pixel inside the disc (8 x 8 sub-samples).
+  // Beam footprint: the beam's mean irradiance over each grid pixel (8 x 8 sub-samples).
   Image beam(n, n);
   for (int y = 0; y < n; ++y) {
     for (int x = 0; x < n; ++x) {
-      int inside = 0;
+      double sum = 0;
       for (int a = 0; a < 8; ++a) {
         for (int b = 0; b < 8; ++b) {
           const Eigen::Vector2d q(rig->grid_min_m_.x() + (x + (b + 0.5) / 8) * p,
                                   rig->grid_min_m_.y() + (y + (a + 0.5) / 8) * p);
-          inside += (q - options.beam_offset_m).norm() <= options.beam_radius_m;
+          sum += GaussianBeam((q - options.beam_offset_m).squaredNorm(), options.beam_radius_m);
         }
       }
-      beam.at(x, y) = inside / 64.0f;
+      beam.at(x, y) = static_cast<float>(sum / 64);
     }
   }
   // Exit lobe of the layer: Gu Eq. 6 (exact for the first order here) + Monte Carlo for all
@@ -153,13 +163,14 @@ Status SimLaserLobeRig::Create(const SimLaserLobeOptions& options, std::unique_p
   cam_options.board_albedo = options.board_albedo;
   cam_options.vignetting = options.vignetting;
   cam_options.render_supersample = options.render_supersample;
-  // Irradiance 1 (the unscattered clean beam) fills spike_fill at the shortest exposure.
+  // The unscattered clean beam's peak (irradiance 2, GaussianBeam) fills spike_fill at the
+  // shortest exposure.
   cam_options.electrons_per_radiance_us = options.spike_fill * options.sensor.full_well_e /
-                                          (options.board_albedo / kPi) / options.shortest_exposure_us;
+                                          (2 * options.board_albedo / kPi) / options.shortest_exposure_us;
   cam_options.initial_exposure_us = options.shortest_exposure_us;
   cam_options.sensor = options.sensor;
   cam_options.seed = options.seed;
-  rig->flat_irradiance_ = options.flat_fill / options.spike_fill / 1000.0;
+  rig->flat_irradiance_ = 2 * options.flat_fill / options.spike_fill / 1000.0;
   SimLaserLobeRig* raw = rig.get();
   rig->camera_.reset(new SimBoardCamera(cam_options, [raw](double x, double y) { return raw->BoardIrradiance(x, y); }));
   rig->laser_.reset(new LaserImpl(raw));

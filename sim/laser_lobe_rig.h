@@ -25,7 +25,7 @@ struct SimLaserLobeOptions {
   double layer_albedo = 0.3;       // Single-scattering albedo omega0.
   double layer_g = 0.8;            // HG g.
   double board_distance_m = 0.02;  // Layer-to-board distance d.
-  double beam_radius_m = 0.5e-3;
+  double beam_radius_m = 0.5e-3;  // 1/e^2 intensity radius of the Gaussian beam.
   Eigen::Vector2d beam_offset_m = Eigen::Vector2d::Zero();  // Beam axis off the board centre.
   double board_albedo = 0.8;
   double board_half_width_m = 0.035;  // Imaged board region: +-half width around the axis.
@@ -37,7 +37,7 @@ struct SimLaserLobeOptions {
   double fill_fraction = 0.9;
   double vignetting = 0.15;
   int render_supersample = 2;
-  // The unscattered spike at the shortest exposure of the bracket fills this fraction of full
+  // The unscattered spike's peak at the shortest exposure of the bracket fills this fraction of full
   // well (so longer exposures saturate it).
   double spike_fill = 0.5;
   double shortest_exposure_us = 20;
