@@ -390,24 +390,26 @@ int RunCalibDots(int argc, char** argv) {
     m.distance_error_sigma_m = result.distance_error_sigma_m;
     m.distance_correction_m = result.distance_correction_m;
     m.dots = result.dots;
-    int saturated = 0;
+    int saturated = 0, placed = 0;
     std::ostringstream csv;
     csv << "# thinslab calib dots: detected dots\n";
-    csv << "dot_x_px,dot_y_px,detected,centroid_x_px,centroid_y_px,x_m,y_m,z_m,radiance_dn_per_us,saturated,residual_m\n";
+    csv << "dot_x_px,dot_y_px,detected,centroid_x_px,centroid_y_px,x_m,y_m,z_m,radiance_dn_per_us,saturated,residual_m,clipped,placed_from_geometry\n";
     for (const DotRecord& d : result.dots) {
       saturated += d.saturated ? 1 : 0;
+      placed += d.placed_from_geometry ? 1 : 0;
       csv << d.dot_px.x() << "," << d.dot_px.y() << "," << (d.detected ? 1 : 0) << "," << Fmt("%.4f", d.centroid_px.x())
           << "," << Fmt("%.4f", d.centroid_px.y()) << "," << Fmt("%.7f", d.position_in_sample_m.x()) << ","
           << Fmt("%.7f", d.position_in_sample_m.y()) << "," << Fmt("%.7f", d.position_in_sample_m.z()) << ","
           << Fmt("%.6g", d.radiance_dn_per_us) << "," << (d.saturated ? 1 : 0) << "," << Fmt("%.3e", d.residual_m)
-          << "\n";
+          << "," << (d.clipped ? 1 : 0) << "," << (d.placed_from_geometry ? 1 : 0) << "\n";
     }
     std::ostringstream report;
     report << "thinslab calib dots: frame " << chosen->file << " (exposure " << chosen->exposure_time_us << " us)\n"
            << "intrinsics/pose from " << (rig.camera.present || rig.pose.present ? rig_path : "the manifest") << "\n"
            << "displayed dots " << displayed.size() << ", blobs " << result.num_blobs << ", matched "
            << result.num_matched << ", unmatched blobs " << result.num_unmatched_blobs << ", saturated " << saturated
-           << "\n"
+           << ", cut by the image border " << result.num_clipped << ", placed from the monitor geometry " << placed
+           << " (outside the view, not found or cut: they enter no estimate)\n"
            << "background " << Fmt("%.5g", result.background_dn_per_us) << " DN/us, noise "
            << Fmt("%.3g", result.noise_dn_per_us) << " DN/us\n"
            << "grid homography rms " << Fmt("%.4f", result.homography_rms_px) << " px\n"

@@ -225,6 +225,11 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   DmfSliceSet slices;
   DmfProcessingReport processing;
   THINSLAB_RETURN_IF_ERROR(PrepareDotScanSlices(session_dir, run.processing, &slices, &processing));
+  if (processing.dots_placed_from_geometry > 0) {
+    std::cout << "dot geometry: " << processing.dots_placed_from_geometry << " of " << processing.num_dots
+              << " dots placed from the monitor geometry (outside the camera's view, not found, or "
+              << processing.dots_clipped << " cut by the image border), with the median L_q\n";
+  }
   if (!processing.dot_distance_warning.empty()) {
     std::cerr << "warning: " << processing.dot_geometry_source << ": " << processing.dot_distance_warning << "\n";
   }
@@ -380,6 +385,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["points_fitted_directly"] = maps.num_fitted;
   j["status_counts"] = counts;
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
+  j["dot_positions"] = {{"measured", processing.num_dots - processing.dots_placed_from_geometry},
+                        {"placed_from_geometry", processing.dots_placed_from_geometry},
+                        {"clipped_at_border", processing.dots_clipped}};
   j["monitor_distance"] = {{"error_m", processing.dot_distance_error_m},
                            {"error_sigma_m", processing.dot_distance_error_sigma_m},
                            {"correction_m", processing.dot_distance_correction_m},

@@ -59,6 +59,7 @@ struct Blob {
   double flux_dn_per_us = 0;     // Background-subtracted sum over the window.
   double peak = 0;
   bool saturated = false;
+  bool clipped = false;          // Its window reaches the image border: centroid and flux are cut.
 };
 
 double Median(std::vector<float> v) {
@@ -186,6 +187,9 @@ Status FitGridOnPlane(const CameraInfo& camera, const MonitorInfo& monitor,
         rec.centroid_px = blob.centroid_px;
         rec.position_in_sample_m = x_in_sample;
         rec.saturated = blob.saturated;
+        rec.clipped = blob.clipped;
+      }
+      if (rec.detected && !rec.clipped) {
         // L_q = integrated signal / projected dot area in camera px. The area is the dot's
         // area on the screen (pi r^2 pitch^2) times |det| of d(pixel)/d(screen metres), taken by
         // central differences through the full camera model (distortion included).
@@ -211,7 +215,9 @@ Status FitGridOnPlane(const CameraInfo& camera, const MonitorInfo& monitor,
     }
     out.dots.push_back(rec);
   }
-  if (grid_m.size() < 3) return Status::Error("dots: fewer than 3 dots back-project onto the monitor plane");
+  if (grid_m.size() < 3) {
+    return Status::Error("dots: fewer than 3 dots inside the frame back-project onto the monitor plane");
+  }
 
   // In-plane rigid correction (2D Procrustes, no scale: the pitch is known) of the nominal
   // monitor pose: measured ~ R * grid + t in monitor coordinates.
@@ -237,7 +243,14 @@ Status FitGridOnPlane(const CameraInfo& camera, const MonitorInfo& monitor,
   double sum2 = 0;
   size_t k = 0;
   for (DotRecord& rec : out.dots) {
-    if (!rec.detected) continue;
+    if (!rec.detected || rec.clipped) {
+      // Outside the camera's view, lost in the background, or cut by the image border: placed
+      // from the fitted monitor geometry (the monitor lights the sample from there all the same).
+      rec.placed_from_geometry = true;
+      rec.position_in_sample_m =
+          out.sample_from_monitor * Eigen::Vector3d(rec.dot_px.x() * pitch, rec.dot_px.y() * pitch, 0);
+      continue;
+    }
     rec.residual_m = (R * grid_m[k] + t - measured_m[k]).norm();
     sum2 += Sqr(rec.residual_m);
     out.max_residual_m = std::max(out.max_residual_m, rec.residual_m);
@@ -342,6 +355,9 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
     }
     const Eigen::Vector2d own = centre(l);
     Blob blob;
+    blob.clipped = stats.at<int>(l, cv::CC_STAT_LEFT) < m || stats.at<int>(l, cv::CC_STAT_TOP) < m ||
+                   stats.at<int>(l, cv::CC_STAT_LEFT) + stats.at<int>(l, cv::CC_STAT_WIDTH) > w - m ||
+                   stats.at<int>(l, cv::CC_STAT_TOP) + stats.at<int>(l, cv::CC_STAT_HEIGHT) > h - m;
     double sw = 0, sx = 0, sy = 0, flux = 0;
     for (int y = y0; y <= y1; ++y) {
       for (int x = x0; x <= x1; ++x) {
@@ -482,6 +498,7 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
   out.num_blobs = static_cast<int>(blobs.size());
   out.num_matched = best_num;
   out.num_unmatched_blobs = out.num_blobs - best_num;
+  for (size_t d = 0; d < match.size(); ++d) out.num_clipped += match[d] >= 0 && blobs[match[d]].clipped;
   out.background_dn_per_us = background * inv_t;
   out.noise_dn_per_us = noise * inv_t;
   out.homography_rms_px = best_rms * camera.fx_px;

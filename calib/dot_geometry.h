@@ -51,7 +51,16 @@ struct DotRecord {
   // covered by the dot would record (black level and background removed).
   double radiance_dn_per_us = 0;
   bool saturated = false;  // Some pixel of the dot reached saturation_dn: radiance unusable.
+  // Found, but its window reaches the image border: its centroid and flux are cut, so it enters
+  // no estimate (pose correction, grid scale, L_q) and is placed from the geometry.
+  bool clipped = false;
+  // Position from the fitted monitor geometry (sample_from_monitor and the displayed position),
+  // not from a centroid: dots outside the camera's view, not found, or clipped. Such a dot's
+  // L_q is the median of the measured ones (issue #23).
+  bool placed_from_geometry = false;
   double residual_m = 0;   // |position - fitted grid position| on the monitor plane.
+  // Centroid and L_q of this dot can be used.
+  bool measured() const { return detected && !clipped; }
 };
 
 struct DotGeometryResult {
@@ -72,6 +81,7 @@ struct DotGeometryResult {
   double camera_to_plane_m = 0;     // h: the camera centre's distance to the plane used.
   double distance_correction_m = 0; // refine_distance: how far the plane was moved (> 0: towards the camera).
   int num_blobs = 0, num_matched = 0, num_unmatched_blobs = 0;
+  int num_clipped = 0;  // Matched dots cut by the image border (DotRecord::clipped).
   double background_dn_per_us = 0, noise_dn_per_us = 0;
 };
 

@@ -148,6 +148,54 @@ TEST(DotGeometryTest, DenseFortyByFortyGrid) {
   EXPECT_NEAR(mean_ratio, 1.0, 0.01);
 }
 
+// Issue #23: a grid that extends beyond the camera's view. Dots outside it still light the
+// sample, so every dot gets a position (from the fitted monitor geometry where there is no
+// centroid); dots cut by the image border are flagged and enter no estimate, so neither the
+// residual nor the monitor distance check sees their cut centroids.
+TEST(DotGeometryTest, GridBeyondTheCameraViewPlacesEveryDotAndLeavesClippedDotsOut) {
+  SimDotMonitorOptions options;
+  options.camera_view_width_m = 0.06;  // The 19 x 19 grid spans 90 mm.
+  std::unique_ptr<SimDotMonitor> rig;
+  ASSERT_TRUE(SimDotMonitor::Create(options, &rig).ok());
+  const Image frame = Capture(rig.get(), kGrid);
+  const CameraInfo cam = rig->camera_info();
+  const MonitorInfo nominal = ShiftedMonitor(rig->monitor_info(), Eigen::Vector2d(1e-3, -1e-3), 0.3 * kPi / 180);
+  DotGeometryOptions dot_options;
+  dot_options.dot_radius_px = options.dot_radius_px;
+  DotGeometryResult result;
+  const Status s = CalibrateDotGeometry(frame, 1000, cam.saturation_dn - cam.black_level_dn, cam, nominal, GridDots(),
+                                        dot_options, &result);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ASSERT_EQ(result.dots.size(), 361u);
+  int measured = 0, placed = 0, clipped = 0;
+  double worst_measured_m = 0, worst_placed_m = 0;
+  for (const DotRecord& dot : result.dots) {
+    const double error = (dot.position_in_sample_m - rig->DotInSample(dot.dot_px)).norm();
+    ASSERT_TRUE(dot.measured() || dot.placed_from_geometry) << dot.dot_px.transpose();
+    if (dot.measured()) {
+      ++measured;
+      worst_measured_m = std::max(worst_measured_m, error);
+      EXPECT_FALSE(dot.placed_from_geometry);
+    } else {
+      ++placed;
+      worst_placed_m = std::max(worst_placed_m, error);
+    }
+    clipped += dot.clipped;
+  }
+  std::printf("grid beyond the view: %d measured, %d placed (%d cut by the border); worst error measured %.4f mm, "
+              "placed %.4f mm; rms residual %.4f mm, distance error %.4f mm\n",
+              measured, placed, clipped, worst_measured_m * 1e3, worst_placed_m * 1e3, result.rms_residual_m * 1e3,
+              result.distance_error_m * 1e3);
+  EXPECT_GT(placed, 100);  // Most of the grid is outside the 60 mm view.
+  EXPECT_GT(measured, 50);
+  EXPECT_GT(clipped, 0);   // The view's edges cut some dots.
+  EXPECT_EQ(clipped, result.num_clipped);
+  EXPECT_LT(worst_measured_m, 0.1e-3);
+  EXPECT_LT(worst_placed_m, 0.1e-3);  // The refined geometry puts unseen dots where they are.
+  EXPECT_LT(result.max_residual_m, 0.1e-3);
+  EXPECT_EQ(MonitorDistanceWarning(result.distance_error_m, result.distance_error_sigma_m), "");
+}
+
 // The simulator itself: a single dot's intensity centroid lands on the projection of its true
 // 3D position (within 0.1 px), so the tests above check the estimator, not a shared bias.
 TEST(DotGeometryTest, SimulatedSingleDotProjectsToItsTruePosition) {

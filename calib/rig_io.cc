@@ -184,9 +184,13 @@ Status ReadRigCalibration(const std::string& path, RigCalibration* rig) {
       DotRecord rec;
       THINSLAB_RETURN_IF_ERROR(r.Vec(d, dp, "dot_px", &rec.dot_px));
       THINSLAB_RETURN_IF_ERROR(r.Bool(d, dp, "detected", &rec.detected));
-      if (rec.detected) {
-        THINSLAB_RETURN_IF_ERROR(r.Vec(d, dp, "centroid_px", &rec.centroid_px));
+      THINSLAB_RETURN_IF_ERROR(r.Bool(d, dp, "clipped", &rec.clipped));
+      THINSLAB_RETURN_IF_ERROR(r.Bool(d, dp, "placed_from_geometry", &rec.placed_from_geometry));
+      if (rec.detected) THINSLAB_RETURN_IF_ERROR(r.Vec(d, dp, "centroid_px", &rec.centroid_px));
+      if (rec.detected || rec.placed_from_geometry) {
         THINSLAB_RETURN_IF_ERROR(r.Vec(d, dp, "position_in_sample_m", &rec.position_in_sample_m));
+      }
+      if (rec.measured()) {
         THINSLAB_RETURN_IF_ERROR(r.Number(d, dp, "radiance_dn_per_us", &rec.radiance_dn_per_us));
         THINSLAB_RETURN_IF_ERROR(r.Bool(d, dp, "saturated", &rec.saturated));
         THINSLAB_RETURN_IF_ERROR(r.Number(d, dp, "residual_m", &rec.residual_m));
@@ -263,9 +267,13 @@ Status WriteRigCalibration(const std::string& path, const RigCalibration& rig) {
       OrderedJson e;
       e["dot_px"] = {d.dot_px.x(), d.dot_px.y()};
       e["detected"] = d.detected;
-      if (d.detected) {
-        e["centroid_px"] = {d.centroid_px.x(), d.centroid_px.y()};
+      if (d.clipped) e["clipped"] = true;
+      if (d.placed_from_geometry) e["placed_from_geometry"] = true;
+      if (d.detected) e["centroid_px"] = {d.centroid_px.x(), d.centroid_px.y()};
+      if (d.detected || d.placed_from_geometry) {
         e["position_in_sample_m"] = {d.position_in_sample_m.x(), d.position_in_sample_m.y(), d.position_in_sample_m.z()};
+      }
+      if (d.measured()) {
         e["radiance_dn_per_us"] = d.radiance_dn_per_us;
         e["saturated"] = d.saturated;
         e["residual_m"] = d.residual_m;

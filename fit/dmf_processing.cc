@@ -81,10 +81,11 @@ Status MeasureDotGeometry(const std::string& session_dir, const Session& session
     *geometry = g;
     report->dot_geometry_source = f->file;
     have_geometry = true;
-    if (std::none_of(g.dots.begin(), g.dots.end(), [](const DotRecord& d) { return d.detected && d.saturated; })) break;
+    if (std::none_of(g.dots.begin(), g.dots.end(), [](const DotRecord& d) { return d.measured() && d.saturated; })) break;
   }
   if (!have_geometry) return Status::Error("dot geometry: " + geometry_error);
-  if (std::all_of(geometry->dots.begin(), geometry->dots.end(), [](const DotRecord& d) { return d.saturated; })) {
+  if (std::none_of(geometry->dots.begin(), geometry->dots.end(),
+                   [](const DotRecord& d) { return d.measured() && !d.saturated; })) {
     // The dots were found only in frames where they saturate; say why the shorter ones failed.
     return Status::Error("dot geometry: every dot is saturated in " + report->dot_geometry_source +
                          ", the all-dots frame in which they were found, so L_q cannot be measured (the all-dots "
@@ -213,8 +214,15 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   }
   std::vector<double> radiances;
   for (const DotRecord& d : geometry.dots) {
-    if (!d.detected) return Status::Error("dot geometry: " + DotName(d.dot_px) + " was not found in " + report->dot_geometry_source);
-    if (!d.saturated) radiances.push_back(d.radiance_dn_per_us);
+    // Detection refines a dot's position; it is not a gate (issue #23): a dot the camera does not
+    // see still lights the sample, from where the fitted monitor geometry puts it.
+    if (!d.detected && !d.placed_from_geometry) {
+      return Status::Error("dot geometry: " + DotName(d.dot_px) + " has no position in " + report->dot_geometry_source +
+                           " (written before dots were placed from the monitor geometry: rerun `thinslab calib dots`)");
+    }
+    report->dots_placed_from_geometry += d.placed_from_geometry;
+    report->dots_clipped += d.clipped;
+    if (d.measured() && !d.saturated) radiances.push_back(d.radiance_dn_per_us);
   }
   if (radiances.empty()) {
     // The dots were found only in frames where they saturate; say why the shorter ones failed.
@@ -299,7 +307,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     const Image variance = rectifier.Rectify(hdr.variance);
     const Image saturated = rectifier.RectifyAny(hdr.all_saturated);
     const DotRecord& dot = geometry.dots[q];
-    const double l_q = dot.saturated ? median_radiance : dot.radiance_dn_per_us;
+    const double l_q = dot.saturated || !dot.measured() ? median_radiance : dot.radiance_dn_per_us;
     for (int p = 0; p < np; ++p) {
       const int x = p % grid.width_px, y = p / grid.width_px;
       const Eigen::Vector3d to_dot = dot.position_in_sample_m - slices->PointPosition(p);

@@ -71,6 +71,10 @@ struct DmfProcessingReport {
   ExposureCheck exposure_check;
   std::string exposure_warning;
   double median_dot_radiance = 0;  // L_q [DN/us].
+  // Dots placed from the fitted monitor geometry instead of a centroid (outside the camera's
+  // view, not found, or cut by the image border; DotRecord::placed_from_geometry), of which cut by
+  // the border (DotRecord::clipped). Their L_q is the median.
+  int dots_placed_from_geometry = 0, dots_clipped = 0;
   int saturated_points = 0, outside_points = 0;
   double geometry_s = 0, merge_s = 0, total_s = 0;
   size_t slice_bytes = 0;  // Memory of the slice matrix.
