@@ -13,11 +13,17 @@
 #include "core/memory.h"
 #include "calib/board_rectification.h"
 #include "calib/hdr_merge.h"
+#include "core/camera_model.h"
 #include "core/file.h"
 #include "core/math.h"
 #include "core/session_io.h"
 
 namespace thinslab {
+
+namespace {
+// Dots inside the camera's view (5 % margin) that detection may miss before the fit stops.
+constexpr double kMaxMissedDotsInView = 0.05;
+}  // namespace
 namespace {
 
 double Seconds(std::chrono::steady_clock::time_point since) {
@@ -213,6 +219,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
         MeasureDotGeometry(session_dir, session, camera, response, displayed, options, &geometry, report));
   }
   std::vector<double> radiances;
+  int missed_in_view = 0;
   for (const DotRecord& d : geometry.dots) {
     // Detection refines a dot's position; it is not a gate (issue #23): a dot the camera does not
     // see still lights the sample, from where the fitted monitor geometry puts it.
@@ -223,6 +230,21 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     report->dots_placed_from_geometry += d.placed_from_geometry;
     report->dots_clipped += d.clipped;
     if (d.measured() && !d.saturated) radiances.push_back(d.radiance_dn_per_us);
+    // A dot placed from the geometry although it falls well inside the frame was missed, not
+    // out of view: the all-dots frame is too dark, too bright or not of this grid.
+    Eigen::Vector2d px;
+    const double margin = 0.05 * std::min(camera.width_px, camera.height_px);
+    if (!d.detected && ProjectSamplePoint(camera, d.position_in_sample_m, &px) && px.x() > margin &&
+        px.y() > margin && px.x() < camera.width_px - margin && px.y() < camera.height_px - margin) {
+      ++missed_in_view;
+    }
+  }
+  if (missed_in_view > kMaxMissedDotsInView * static_cast<double>(geometry.dots.size())) {
+    return Status::Error("dot geometry: " + std::to_string(missed_in_view) + " of " +
+                         std::to_string(geometry.dots.size()) + " dots inside the camera's view were not found in " +
+                         report->dot_geometry_source +
+                         " (too dark or too bright an all-dots frame, or another grid than the scan's); check its "
+                         "exposure, or `thinslab calib dots` with other thresholds");
   }
   if (radiances.empty()) {
     // The dots were found only in frames where they saturate; say why the shorter ones failed.
