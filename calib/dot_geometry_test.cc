@@ -83,19 +83,25 @@ void CheckAgainstTruth(const SimDotMonitor& rig, const DotGeometryResult& result
   EXPECT_LT(worst_radiance, 0.05);
 }
 
-TEST(DotGeometryTest, RecoversDotPositionsAndRadianceWithNominalMonitorOffset) {
-  SimDotMonitorOptions options;
-  std::unique_ptr<SimDotMonitor> rig;
-  ASSERT_TRUE(SimDotMonitor::Create(options, &rig).ok());
-  const Image frame = Capture(rig.get(), kGrid);
-  const CameraInfo cam = rig->camera_info();
-  // The manifest's monitor placement is off by (3, -2) mm and 1 degree in the screen plane.
-  const MonitorInfo nominal = ShiftedMonitor(rig->monitor_info(), Eigen::Vector2d(3e-3, -2e-3), 1 * kPi / 180);
+// Shows kGrid on the simulated rig and calibrates the dot geometry against a manifest whose
+// monitor placement is off by `shift_m` and `angle_rad` in the screen plane.
+Status CalibrateShownGrid(const SimDotMonitorOptions& options, const Eigen::Vector2d& shift_m, double angle_rad,
+                          std::unique_ptr<SimDotMonitor>* rig, DotGeometryResult* result) {
+  THINSLAB_RETURN_IF_ERROR(SimDotMonitor::Create(options, rig));
+  const Image frame = Capture(rig->get(), kGrid);
+  const CameraInfo cam = (*rig)->camera_info();
+  const MonitorInfo nominal = ShiftedMonitor((*rig)->monitor_info(), shift_m, angle_rad);
   DotGeometryOptions dot_options;
   dot_options.dot_radius_px = options.dot_radius_px;
+  return CalibrateDotGeometry(frame, 1000, cam.saturation_dn - cam.black_level_dn, cam, nominal, GridDots(),
+                              dot_options, result);
+}
+
+TEST(DotGeometryTest, RecoversDotPositionsAndRadianceWithNominalMonitorOffset) {
+  // The manifest's monitor placement is off by (3, -2) mm and 1 degree in the screen plane.
+  std::unique_ptr<SimDotMonitor> rig;
   DotGeometryResult result;
-  const Status s = CalibrateDotGeometry(frame, 1000, cam.saturation_dn - cam.black_level_dn, cam, nominal, GridDots(),
-                                        dot_options, &result);
+  const Status s = CalibrateShownGrid({}, Eigen::Vector2d(3e-3, -2e-3), 1 * kPi / 180, &rig, &result);
   ASSERT_TRUE(s.ok()) << s.message();
   CheckAgainstTruth(*rig, result);
   EXPECT_NEAR(result.in_plane_correction_rad, 1 * kPi / 180, 0.01 * kPi / 180);
@@ -156,15 +162,8 @@ TEST(DotGeometryTest, GridBeyondTheCameraViewPlacesEveryDotAndLeavesClippedDotsO
   SimDotMonitorOptions options;
   options.camera_view_width_m = 0.06;  // The 19 x 19 grid spans 90 mm.
   std::unique_ptr<SimDotMonitor> rig;
-  ASSERT_TRUE(SimDotMonitor::Create(options, &rig).ok());
-  const Image frame = Capture(rig.get(), kGrid);
-  const CameraInfo cam = rig->camera_info();
-  const MonitorInfo nominal = ShiftedMonitor(rig->monitor_info(), Eigen::Vector2d(1e-3, -1e-3), 0.3 * kPi / 180);
-  DotGeometryOptions dot_options;
-  dot_options.dot_radius_px = options.dot_radius_px;
   DotGeometryResult result;
-  const Status s = CalibrateDotGeometry(frame, 1000, cam.saturation_dn - cam.black_level_dn, cam, nominal, GridDots(),
-                                        dot_options, &result);
+  const Status s = CalibrateShownGrid(options, Eigen::Vector2d(1e-3, -1e-3), 0.3 * kPi / 180, &rig, &result);
   ASSERT_TRUE(s.ok()) << s.message();
   ASSERT_EQ(result.dots.size(), 361u);
   int measured = 0, placed = 0, clipped = 0;
