@@ -14,6 +14,7 @@
 
 #include "app/capture_options.h"
 #include "app/commands.h"
+#include "app/calibration_options.h"
 #include "app/option_parser.h"
 #include "calib/camera_calibration.h"
 #include "calib/dot_geometry.h"
@@ -297,11 +298,8 @@ int RunCalibDots(int argc, char** argv) {
   DotGeometryOptions options;
   OptionParser parser("calib dots");
   parser.AddPositional("SESSION", &session_dir, "dot-scan session with an all-dots frame taken without the sample");
-  parser.AddDouble("dot-radius-px", &options.dot_radius_px, "radius of the displayed dots [monitor px]");
-  parser.AddDouble("threshold-sigma", &options.threshold_sigma, "detection threshold above background [noise sigmas]");
-  parser.AddDouble("threshold-fraction", &options.threshold_fraction,
-                   "detection threshold as a fraction of the brightest dot's 3x3 mean");
-  parser.AddInt("window-margin-px", &options.window_margin_px, "centroid window margin around each blob [px]");
+  double dot_radius_px = 0;
+  AddDotDetectionOptions(&parser, &options, &dot_radius_px);
   parser.AddString("kind", &kind, "frame kind of the all-dots frames");
   parser.AddBool("refine-distance", &options.refine_distance,
                  "set the monitor distance d from the grid's scale instead of the manifest's");
@@ -319,10 +317,13 @@ int RunCalibDots(int argc, char** argv) {
   }
   auto run = [&]() -> Status {
     THINSLAB_RETURN_IF_ERROR(status);
+    THINSLAB_RETURN_IF_ERROR(CheckDotRadiusOption(parser, dot_radius_px));
     Session session;
     THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete, &session));
     const std::string manifest = JoinPath(session_dir, kSessionManifestName);
     if (!session.rig.monitor.present) return Status::Error(manifest + ": rig.monitor: missing (the dot monitor geometry)");
+    std::string dot_radius_source;
+    options.dot_radius_px = ResolveDotRadiusPx(dot_radius_px, session.rig.monitor, &dot_radius_source);
     std::vector<const FrameRecord*> frames = session.UsableFrames(kind, "none");
     if (frames.empty()) {
       return Status::Error(manifest + ": frames: no usable frame of kind '" + kind +
@@ -406,11 +407,13 @@ int RunCalibDots(int argc, char** argv) {
     std::ostringstream report;
     report << "thinslab calib dots: frame " << chosen->file << " (exposure " << chosen->exposure_time_us << " us)\n"
            << "intrinsics/pose from " << (rig.camera.present || rig.pose.present ? rig_path : "the manifest") << "\n"
+           << "dot radius " << options.dot_radius_px << " monitor px (" << dot_radius_source << ")\n"
            << "displayed dots " << displayed.size() << ", blobs " << result.num_blobs << ", matched "
-           << result.num_matched << ", unmatched blobs " << result.num_unmatched_blobs << ", saturated " << saturated
+           << result.num_matched << " (" << result.num_found_by_grid_prior << " of them measured where the grid puts "
+           << "them), unmatched blobs " << result.num_unmatched_blobs << ", saturated " << saturated
            << ", cut by the image border " << result.num_clipped << ", placed from the monitor geometry " << placed
            << " (outside the view, not found or cut: they enter no estimate)\n"
-           << "background " << Fmt("%.5g", result.background_dn_per_us) << " DN/us, noise "
+           << "local background (median) " << Fmt("%.5g", result.background_dn_per_us) << " DN/us, noise "
            << Fmt("%.3g", result.noise_dn_per_us) << " DN/us\n"
            << "grid homography rms " << Fmt("%.4f", result.homography_rms_px) << " px\n"
            << "residual to the displayed grid on the monitor plane: rms " << Fmt("%.4f", result.rms_residual_m * 1e3)
@@ -438,6 +441,7 @@ int RunCalibDots(int argc, char** argv) {
     THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(calib_dir, "dots.csv"), csv.str()));
     THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(calib_dir, "dots_report.txt"), report.str()));
     std::cout << report.str() << "wrote " << out_rig << "\n";
+    if (dot_radius_source == "default") std::cerr << "warning: " << AssumedDotRadiusWarning(manifest) << "\n";
     if (!distance_warning.empty()) std::cerr << "warning: " << JoinPath(session_dir, chosen->file) << ": " << distance_warning << "\n";
     return Status::Ok();
   };

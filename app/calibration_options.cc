@@ -15,6 +15,39 @@ void AddCalibrationOptions(OptionParser* parser, SessionCalibrationOptions* opti
                     "present)");
 }
 
+void AddDotDetectionOptions(OptionParser* parser, DotGeometryOptions* options, double* dot_radius_px) {
+  parser->AddDouble("dot-radius-px", dot_radius_px,
+                    "radius of a displayed dot [monitor px]; 0 = the manifest's rig.monitor.dot_radius_px, else 2");
+  parser->AddDouble("threshold-sigma", &options->threshold_sigma,
+                    "all-dots frame: a dot's smoothed peak at least this many noise sigmas above the local background");
+  parser->AddDouble("threshold-fraction", &options->threshold_fraction,
+                    "all-dots frame: ... and at least this fraction of the brightest dot's peak");
+  parser->AddDouble("min-peak-fraction", &options->min_peak_fraction,
+                    "all-dots frame: ... and at least this fraction of the median dot's peak");
+  parser->AddInt("min-blob-area-px", &options->min_blob_area_px,
+                 "all-dots frame: ... with at least this many pixels above the threshold");
+  parser->AddDouble("peak-separation-fraction", &options->peak_separation_fraction,
+                    "all-dots frame: maxima closer than this fraction of the displayed dot spacing are one dot");
+  parser->AddInt("window-margin-px", &options->window_margin_px,
+                 "all-dots frame: centroid window = a dot's image radius plus this [camera px]");
+  parser->AddInt("background-window-px", &options->background_window_px,
+                 "all-dots frame: side of the local background's window [camera px]; 0 = from the dot size");
+  parser->AddDouble("match-gate-fraction", &options->match_gate_fraction,
+                    "all-dots frame: a dot matches the grid within this fraction of the local spacing");
+}
+
+Status CheckDotRadiusOption(const OptionParser& parser, double dot_radius_px) {
+  if (parser.IsSet("dot-radius-px") && !(dot_radius_px > 0 && dot_radius_px <= 1000)) {
+    return Status::Error("--dot-radius-px: must be in (0, 1000] monitor px, got " + std::to_string(dot_radius_px));
+  }
+  return Status::Ok();
+}
+
+std::string AssumedDotRadiusWarning(const std::string& manifest) {
+  return manifest + ": rig.monitor.dot_radius_px is not given; assuming " + std::to_string(kDefaultDotRadiusPx).substr(0, 3) +
+         " monitor px (it sets the detection windows and L_q; --dot-radius-px or the manifest field sets it)";
+}
+
 nlohmann::json CalibrationSummaryJson(const SessionCalibration& calibration) {
   nlohmann::json j;
   j["rig"] = calibration.rig_file.empty() ? nlohmann::json() : nlohmann::json(calibration.rig_file);

@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calib/dot_geometry.h"
 #include "calib/exposure_check.h"
 #include "calib/session_calibration.h"
 
@@ -14,6 +15,16 @@ class OptionParser;
 
 // --calibration auto|none, --rig PATH, --response PATH|linear.
 void AddCalibrationOptions(OptionParser* parser, SessionCalibrationOptions* options);
+
+// The all-dots frame's detection (calib/dot_geometry.h), shared by `calib dots` and `fit dmf`:
+// --dot-radius-px (0 = rig.monitor.dot_radius_px, else 2 px with a warning), --threshold-sigma,
+// --threshold-fraction, --min-peak-fraction, --min-blob-area-px, --peak-separation-fraction,
+// --window-margin-px, --background-window-px, --match-gate-fraction.
+void AddDotDetectionOptions(OptionParser* parser, DotGeometryOptions* options, double* dot_radius_px);
+// After parsing: an explicitly given --dot-radius-px must be > 0 (0 is only the default's meaning).
+Status CheckDotRadiusOption(const OptionParser& parser, double dot_radius_px);
+// The warning when the dot radius was assumed (ResolveDotRadiusPx's "default"), naming `manifest`.
+std::string AssumedDotRadiusWarning(const std::string& manifest);
 
 // {"rig": file or null, "intrinsics": bool, "pose": bool, "monitor": bool, "response": file or
 // null, "response_method": "linear" | "debevec" | "robertson"} (docs/format.md section 9).

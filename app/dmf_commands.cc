@@ -230,6 +230,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
               << " dots placed from the monitor geometry (outside the camera's view, not found, or "
               << processing.dots_clipped << " cut by the image border), with the median L_q\n";
   }
+  if (processing.dot_radius_source == "default") {
+    std::cerr << "warning: " << AssumedDotRadiusWarning(JoinPath(session_dir, kSessionManifestName)) << "\n";
+  }
   if (!processing.dot_distance_warning.empty()) {
     std::cerr << "warning: " << processing.dot_geometry_source << ": " << processing.dot_distance_warning << "\n";
   }
@@ -385,8 +388,10 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["points_fitted_directly"] = maps.num_fitted;
   j["status_counts"] = counts;
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
+  j["dot_radius"] = {{"monitor_px", processing.dot_radius_px}, {"source", processing.dot_radius_source}};
   j["dot_positions"] = {{"measured", processing.num_dots - processing.dots_placed_from_geometry},
                         {"placed_from_geometry", processing.dots_placed_from_geometry},
+                        {"found_by_grid_prior", processing.dots_found_by_grid_prior},
                         {"clipped_at_border", processing.dots_clipped}};
   j["monitor_distance"] = {{"error_m", processing.dot_distance_error_m},
                            {"error_sigma_m", processing.dot_distance_error_sigma_m},
@@ -496,8 +501,8 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddBool("hold-out", &run.processing.hold_out, "hold out every other dot from the fit");
   parser.AddBool("refine-monitor-distance", &run.processing.dot_geometry.refine_distance,
                  "set the monitor distance d from the all-dots grid's scale (not with calib dots' rig.json)");
-  parser.AddDouble("dot-radius-px", &run.processing.dot_radius_px,
-                   "radius of a displayed dot [monitor px] (rig.json's when it holds the dot calibration)");
+  // rig.json's dot radius and positions replace these when it holds calib dots' dot calibration.
+  AddDotDetectionOptions(&parser, &run.processing.dot_geometry, &run.processing.dot_radius_px);
   AddCalibrationOptions(&parser, &run.processing.calibration);
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
   parser.AddInt("threads", &run.fit.num_threads, "threads");
@@ -514,6 +519,7 @@ int RunFitDmf(int argc, char** argv) {
     std::cout << parser.Usage();
     return 0;
   }
+  if (status.ok()) status = CheckDotRadiusOption(parser, run.processing.dot_radius_px);
   run.processing.pitch_m = pitch_mm * 1e-3;
   if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "dmf");
   run.options_ini = parser.ToIni();

@@ -1,11 +1,15 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "calib/dot_geometry.h"
 
+#include <Eigen/LU>
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
+#include <unordered_map>
+#include <utility>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -25,7 +29,15 @@ Status DotGeometryOptions::Check() const {
     return Status::Error("DotGeometryOptions::min_peak_fraction: must be in [0, 1)");
   }
   if (min_blob_area_px < 1) return Status::Error("DotGeometryOptions::min_blob_area_px: must be >= 1");
-  if (window_margin_px < 0) return Status::Error("DotGeometryOptions::window_margin_px: must be >= 0");
+  if (window_margin_px < 0 || window_margin_px > 1000) {
+    return Status::Error("DotGeometryOptions::window_margin_px: must be in [0, 1000] px");
+  }
+  if (!(peak_separation_fraction > 0 && peak_separation_fraction < 1)) {
+    return Status::Error("DotGeometryOptions::peak_separation_fraction: must be in (0, 1)");
+  }
+  if (background_window_px < 0 || background_window_px > 4001) {
+    return Status::Error("DotGeometryOptions::background_window_px: must be in [0, 4001] px (0: from the dot size)");
+  }
   if (!(match_gate_fraction > 0 && match_gate_fraction < 0.5)) {
     return Status::Error("DotGeometryOptions::match_gate_fraction: must be in (0, 0.5)");
   }
@@ -57,7 +69,8 @@ struct Blob {
   Eigen::Vector2d centroid_px;   // thinslab pixel coordinates.
   Eigen::Vector2d normalized;    // Undistorted normalised camera coordinates.
   double flux_dn_per_us = 0;     // Background-subtracted sum over the window.
-  double peak = 0;
+  double peak = 0;               // Highest smoothed level above the background.
+  int pixels_above_threshold = 0; // Pixels of its window whose smoothed level is above the threshold.
   bool saturated = false;
   bool clipped = false;          // Its window reaches the image border: centroid and flux are cut.
 };
@@ -74,25 +87,62 @@ Eigen::Vector2d ApplyH(const Eigen::Matrix3d& H, const Eigen::Vector2d& p) {
   return q.head<2>() / q.z();
 }
 
-// Matches displayed dots (monitor px) to blobs through homography H (monitor px -> normalised
-// image), refits H on the matches with RANSAC and repeats. Returns the number of matches and
-// fills match[d] = blob index or -1.
-int MatchWithHomography(Eigen::Matrix3d H, const std::vector<Eigen::Vector2d>& dots, const std::vector<Blob>& blobs,
-                        double gate_fraction, double ransac_threshold, std::vector<int>* match, Eigen::Matrix3d* H_out) {
-  const size_t nd = dots.size(), nb = blobs.size();
-  // Each dot's nearest displayed neighbour (monitor px), once: the local spacing in the image
-  // is then the distance between their predictions.
-  std::vector<size_t> neighbour(nd, 0);
-  for (size_t d = 0; d < nd; ++d) {
+// Thinslab pixel of undistorted normalised camera coordinates (as ProjectSamplePoint).
+Eigen::Vector2d NormalizedToPixel(const CameraInfo& camera, const Eigen::Vector2d& xy) {
+  const Eigen::Vector2d d = DistortNormalized(camera.distortion, xy);
+  return Eigen::Vector2d(camera.fx_px * d.x() + camera.cx_px + 0.5, camera.fy_px * d.y() + camera.cy_px + 0.5);
+}
+
+// Index of each point's nearest other point (O(n^2): grids of a few thousand dots).
+std::vector<size_t> NearestNeighbours(const std::vector<Eigen::Vector2d>& points) {
+  std::vector<size_t> neighbour(points.size(), 0);
+  for (size_t d = 0; d < points.size(); ++d) {
     double best = std::numeric_limits<double>::infinity();
-    for (size_t e = 0; e < nd; ++e) {
-      const double dist = (dots[e] - dots[d]).squaredNorm();
+    for (size_t e = 0; e < points.size(); ++e) {
+      const double dist = (points[e] - points[d]).squaredNorm();
       if (e != d && dist < best) {
         best = dist;
         neighbour[d] = e;
       }
     }
   }
+  return neighbour;
+}
+
+// Points in square buckets of a fixed size, for "which points lie near p" in O(1).
+class PointBuckets {
+ public:
+  explicit PointBuckets(double cell_px) : cell_(std::max(1.0, cell_px)) {}
+  void Add(const Eigen::Vector2d& p, int id) { cells_[Key(Cell(p.x()), Cell(p.y()))].push_back({p, id}); }
+  // Calls f(point, id) for every point within `reach` cells of p (reach * cell_px covers a radius).
+  template <typename F>
+  void ForNear(const Eigen::Vector2d& p, int reach, F f) const {
+    const int64_t cx = Cell(p.x()), cy = Cell(p.y());
+    for (int64_t y = cy - reach; y <= cy + reach; ++y) {
+      for (int64_t x = cx - reach; x <= cx + reach; ++x) {
+        const auto it = cells_.find(Key(x, y));
+        if (it == cells_.end()) continue;
+        for (const auto& [q, id] : it->second) f(q, id);
+      }
+    }
+  }
+
+ private:
+  int64_t Cell(double v) const { return static_cast<int64_t>(std::floor(v / cell_)); }
+  static int64_t Key(int64_t x, int64_t y) { return (x << 32) ^ (y & 0xffffffff); }
+  double cell_;
+  std::unordered_map<int64_t, std::vector<std::pair<Eigen::Vector2d, int>>> cells_;
+};
+
+// Matches displayed dots (monitor px) to blobs through homography H (monitor px -> normalised
+// image), refits H on the matches with RANSAC and repeats. Returns the number of matches and
+// fills match[d] = blob index or -1. `neighbour[d]`: dot d's nearest displayed dot.
+int MatchWithHomography(Eigen::Matrix3d H, const std::vector<Eigen::Vector2d>& dots,
+                        const std::vector<size_t>& neighbour, const std::vector<Blob>& blobs, double gate_fraction,
+                        double ransac_threshold, std::vector<int>* match, Eigen::Matrix3d* H_out) {
+  const size_t nd = dots.size(), nb = blobs.size();
+  // The local spacing in the image is the distance between the predictions of a dot and of its
+  // nearest displayed neighbour.
   int num = 0;
   for (int iter = 0; iter < 4; ++iter) {
     std::vector<Eigen::Vector2d> pred(nd);
@@ -155,6 +205,219 @@ std::vector<cv::Point2f> HullCorners(const std::vector<Eigen::Vector2d>& points)
     if (approx.size() < 4) break;
   }
   return {};
+}
+
+// Step 1: how the nominal geometry maps the screen into the image at the displayed grid's centre.
+struct DotImageScale {
+  Eigen::Matrix2d px_per_monitor_px = Eigen::Matrix2d::Identity();  // J = d(camera px) / d(monitor px).
+  double largest_stretch = 1;      // J's largest singular value.
+  double spacing_monitor_px = 0;   // Median distance of a displayed dot to its nearest one.
+  double dot_radius_image_px = 0;  // A dot's radius along the image's most stretched direction.
+};
+
+Status NominalDotImageScale(const CameraInfo& camera, const MonitorInfo& monitor,
+                            const std::vector<Eigen::Vector2d>& dots, double dot_radius_px, DotImageScale* out) {
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& d : dots) centre += d;
+  centre /= static_cast<double>(dots.size());
+  const double pitch = monitor.pixel_pitch_m;
+  auto project = [&](const Eigen::Vector2d& q, Eigen::Vector2d* px) {
+    return ProjectSamplePoint(camera, monitor.sample_from_monitor * Eigen::Vector3d(q.x() * pitch, q.y() * pitch, 0),
+                              px);
+  };
+  Eigen::Vector2d xp, xm, yp, ym;
+  const bool ok = project(centre + Eigen::Vector2d(1, 0), &xp) && project(centre - Eigen::Vector2d(1, 0), &xm) &&
+                  project(centre + Eigen::Vector2d(0, 1), &yp) && project(centre - Eigen::Vector2d(0, 1), &ym);
+  Eigen::Matrix2d J;
+  J.col(0) = 0.5 * (xp - xm);
+  J.col(1) = 0.5 * (yp - ym);
+  if (!ok || !J.allFinite() || !(std::abs(J.determinant()) > 1e-12)) {
+    return Status::Error("dots: rig.monitor puts the displayed grid's centre behind camera '" + camera.id +
+                         "' or edge-on to it: check rig.monitor.sample_from_monitor and the camera pose");
+  }
+  out->px_per_monitor_px = J;
+  out->largest_stretch = Eigen::JacobiSVD<Eigen::Matrix2d>(J).singularValues()(0);
+  std::vector<float> spacing;
+  const std::vector<size_t> neighbour = NearestNeighbours(dots);
+  for (size_t d = 0; d < dots.size(); ++d) spacing.push_back(static_cast<float>((dots[neighbour[d]] - dots[d]).norm()));
+  out->spacing_monitor_px = Median(spacing);
+  out->dot_radius_image_px = dot_radius_px * out->largest_stretch;
+  return Status::Ok();
+}
+
+// Step 2: the grey opening (erode, then dilate) of the 3x3 mean with a square window wider than a
+// dot's image removes the dots and keeps what lies between them, however much of the frame they
+// light; a box mean of the same size smooths the opening's blocks. Outside the frame counts as
+// dark (the 5th percentile of the 3x3 means): a window cut by the border would otherwise fit
+// inside a dot cut by it and keep it as background.
+cv::Mat LocalBackground(const cv::Mat& box3, int window) {
+  std::vector<float> values(reinterpret_cast<const float*>(box3.data),
+                            reinterpret_cast<const float*>(box3.data) + box3.total());
+  const size_t k = values.size() / 20;
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  const int pad = window / 2 + 1;
+  cv::Mat padded, opened, smooth;
+  cv::copyMakeBorder(box3, padded, pad, pad, pad, pad, cv::BORDER_CONSTANT, cv::Scalar(values[k]));
+  const cv::Mat element = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(window, window));
+  cv::morphologyEx(padded, opened, cv::MORPH_OPEN, element);
+  cv::blur(opened, smooth, cv::Size(window, window), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+  return smooth(cv::Rect(pad, pad, box3.cols, box3.rows)).clone();
+}
+
+// Noise sigma of one frame value at the background: d = (v(x+1, y) - v(x, y)) / sqrt(2) has one
+// value's variance and, for white noise, is uncorrelated with the 3x3 mean that contains both
+// values, so selecting the darkest 30 % of 3x3 means (above the local background) does not bias
+// it. A grid lighting up to about 70 % of the frame leaves that much background.
+double BackgroundNoise(const Image& frame, const cv::Mat& box3, const cv::Mat& background) {
+  const int w = frame.width(), h = frame.height();
+  std::vector<float> level;
+  level.reserve(static_cast<size_t>(w) * h);
+  for (int y = 1; y + 1 < h; ++y) {
+    for (int x = 1; x + 1 < w; ++x) level.push_back(box3.at<float>(y, x) - background.at<float>(y, x));
+  }
+  if (level.empty()) return 0.5;
+  std::vector<float> sorted = level;
+  const size_t k = sorted.size() * 3 / 10;
+  std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
+  const float cut = sorted[k];
+  std::vector<float> differences;
+  size_t i = 0;
+  for (int y = 1; y + 1 < h; ++y) {
+    for (int x = 1; x + 1 < w; ++x, ++i) {
+      if (level[i] <= cut) differences.push_back(std::abs(frame.at(x + 1, y) - frame.at(x, y)) / std::sqrt(2.0f));
+    }
+  }
+  const double noise = 1.4826 * Median(differences);
+  return noise > 0 ? noise : 0.5;  // Noise-free quantised frames: half a DN.
+}
+
+// Step 3: the frame convolved with a Gaussian of sigma `sigma_monitor_px` on the screen, i.e.
+// covariance sigma^2 J J^T in the image (at least half a pixel). A dot's image is a convex disc;
+// blurred by a Gaussian it is log-concave, so unimodal: touching dots keep separate maxima and a
+// dot's flat top does not break into several.
+cv::Mat SmoothLikeADot(const cv::Mat& frame, const Eigen::Matrix2d& J, double sigma_monitor_px) {
+  const Eigen::Matrix2d cov = Sqr(sigma_monitor_px) * J * J.transpose() + 0.25 * Eigen::Matrix2d::Identity();
+  const Eigen::Matrix2d info = cov.inverse();
+  const int r = static_cast<int>(std::ceil(3 * std::sqrt(std::max(cov(0, 0), cov(1, 1)))));
+  cv::Mat kernel(2 * r + 1, 2 * r + 1, CV_32FC1);
+  double sum = 0;
+  for (int y = -r; y <= r; ++y) {
+    for (int x = -r; x <= r; ++x) {
+      const Eigen::Vector2d d(x, y);
+      const double v = std::exp(-0.5 * d.dot(info * d));
+      kernel.at<float>(y + r, x + r) = static_cast<float>(v);
+      sum += v;
+    }
+  }
+  kernel /= sum;
+  cv::Mat out;
+  cv::filter2D(frame, out, CV_32F, kernel, cv::Point(-1, -1), 0, cv::BORDER_REPLICATE);
+  return out;
+}
+
+// Local maxima of `height` at or above `threshold`, highest first, dropping any within
+// `separation_monitor_px` (measured on the screen through J^-1) of a higher one. Returns thinslab
+// pixel coordinates (centres at +0.5).
+std::vector<Eigen::Vector2d> SeparatedMaxima(const cv::Mat& height, double threshold, const DotImageScale& scale,
+                                             double separation_monitor_px) {
+  cv::Mat dilated;
+  cv::dilate(height, dilated, cv::Mat());
+  std::vector<std::pair<float, Eigen::Vector2d>> candidates;
+  for (int y = 0; y < height.rows; ++y) {
+    for (int x = 0; x < height.cols; ++x) {
+      const float v = height.at<float>(y, x);
+      if (v >= threshold && v >= dilated.at<float>(y, x)) candidates.push_back({v, Eigen::Vector2d(x + 0.5, y + 0.5)});
+    }
+  }
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  const Eigen::Matrix2d monitor_per_px = scale.px_per_monitor_px.inverse();
+  PointBuckets accepted(separation_monitor_px * scale.largest_stretch);
+  std::vector<Eigen::Vector2d> peaks;
+  for (const auto& [v, p] : candidates) {
+    bool separate = true;
+    accepted.ForNear(p, 1, [&](const Eigen::Vector2d& q, int) {
+      separate = separate && (monitor_per_px * (p - q)).norm() >= separation_monitor_px;
+    });
+    if (!separate) continue;
+    accepted.Add(p, static_cast<int>(peaks.size()));
+    peaks.push_back(p);
+  }
+  return peaks;
+}
+
+// Step 4: what a dot's measurement reads.
+struct DotWindow {
+  const Image& frame;          // DN, black removed.
+  const cv::Mat& smooth;       // Smoothed like a dot's image (SmoothLikeADot): the detection's levels.
+  const cv::Mat& background;   // Local background (DN).
+  int half = 3;                // Half-size of the square window [px].
+  double saturation_dn = 0;
+  double inv_exposure = 1;
+};
+
+// Centroid, flux and flags of the dot seeded at `seed` (thinslab px). Pixels of the window nearer
+// a seed in `others` belong to that dot. The window is re-centred on the centroid once. False if
+// the window holds no signal.
+bool MeasureDot(const DotWindow& in, const Eigen::Vector2d& seed, const std::vector<Eigen::Vector2d>& others,
+                double threshold, const CameraInfo& camera, Blob* blob) {
+  const int w = in.frame.width(), h = in.frame.height();
+  Eigen::Vector2d centre = seed;
+  for (int pass = 0; pass < 2; ++pass) {
+    const int cx = static_cast<int>(std::floor(centre.x())), cy = static_cast<int>(std::floor(centre.y()));
+    const int x0 = std::max(0, cx - in.half), x1 = std::min(w - 1, cx + in.half);
+    const int y0 = std::max(0, cy - in.half), y1 = std::min(h - 1, cy + in.half);
+    Blob b;
+    double sw = 0, sx = 0, sy = 0, flux = 0;
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const Eigen::Vector2d p(x + 0.5, y + 0.5);
+        const double own_d2 = (p - seed).squaredNorm();
+        bool mine = true;
+        for (const Eigen::Vector2d& n : others) mine = mine && (p - n).squaredNorm() >= own_d2;
+        if (!mine) continue;
+        const double v = in.frame.at(x, y);
+        const double s = v - in.background.at<float>(y, x);
+        flux += s;
+        // Intensity-weighted centroid of the background-subtracted signal (negative noise
+        // excursions clamped so they cannot pull the centroid).
+        const double wgt = std::max(0.0, s);
+        sw += wgt;
+        sx += wgt * p.x();
+        sy += wgt * p.y();
+        const double level = in.smooth.at<float>(y, x) - in.background.at<float>(y, x);
+        b.peak = std::max(b.peak, level);
+        b.pixels_above_threshold += level > threshold;
+        if (in.saturation_dn > 0 && v >= in.saturation_dn) b.saturated = true;
+      }
+    }
+    if (!(sw > 0)) return false;
+    centre = Eigen::Vector2d(sx / sw, sy / sw);
+    b.centroid_px = centre;
+    b.flux_dn_per_us = flux * in.inv_exposure;
+    *blob = b;
+  }
+  const int cx = static_cast<int>(std::floor(centre.x())), cy = static_cast<int>(std::floor(centre.y()));
+  blob->clipped = cx - in.half < 0 || cy - in.half < 0 || cx + in.half > w - 1 || cy + in.half > h - 1;
+  blob->normalized = PixelToCameraRay(camera, blob->centroid_px).head<2>();
+  return true;
+}
+
+// Measures a dot at every seed (nullopt where a seed's window holds no signal).
+std::vector<std::optional<Blob>> MeasureDots(const DotWindow& in, const std::vector<Eigen::Vector2d>& seeds,
+                                             double threshold, const CameraInfo& camera) {
+  PointBuckets buckets(2 * in.half + 1);
+  for (size_t k = 0; k < seeds.size(); ++k) buckets.Add(seeds[k], static_cast<int>(k));
+  std::vector<std::optional<Blob>> blobs(seeds.size());
+  for (size_t k = 0; k < seeds.size(); ++k) {
+    std::vector<Eigen::Vector2d> others;
+    buckets.ForNear(seeds[k], 2, [&](const Eigen::Vector2d& q, int id) {
+      if (id != static_cast<int>(k)) others.push_back(q);
+    });
+    Blob blob;
+    if (MeasureDot(in, seeds[k], others, threshold, camera, &blob)) blobs[k] = blob;
+  }
+  return blobs;
 }
 
 // Unit normal of the monitor plane pointing to the camera's side (sample frame).
@@ -304,98 +567,51 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
     return Status::Error("dots: need at least 4 displayed dots, got " + std::to_string(displayed_dots_px.size()));
   }
   const int w = frame_dn.width(), h = frame_dn.height();
-
-  // Background and noise: the dots cover a small part of the frame, so the median is the
-  // background (CRT black level + stray light) and 1.4826 MAD the noise.
   const double inv_t = 1.0 / exposure_us;
-  std::vector<float> values(frame_dn.data().begin(), frame_dn.data().end());
-  const double background = Median(values);
-  for (float& v : values) v = static_cast<float>(std::abs(v - background));
-  double noise = 1.4826 * Median(values);
-  if (!(noise > 0)) noise = 0.5;  // Noise-free quantised frames: half a DN.
-  cv::Mat frame_cv(h, w, CV_32FC1, const_cast<float*>(frame_dn.data().data())), box;
-  cv::blur(frame_cv, box, cv::Size(3, 3));
-  double brightest = 0;
-  cv::minMaxLoc(box, nullptr, &brightest);
-  const double threshold =
-      background + std::max(options.threshold_sigma * noise, options.threshold_fraction * (brightest - background));
 
-  cv::Mat mask(h, w, CV_8UC1, cv::Scalar(0));
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) mask.at<uint8_t>(y, x) = frame_dn.at(x, y) > threshold ? 255 : 0;
-  }
-  cv::Mat labels, stats, centroids;
-  const int num_labels = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  // 1. The dots' size and spacing in the image, from the nominal geometry.
+  DotImageScale scale;
+  THINSLAB_RETURN_IF_ERROR(NominalDotImageScale(camera, monitor, displayed_dots_px, options.dot_radius_px, &scale));
+  const int half = static_cast<int>(std::ceil(scale.dot_radius_image_px)) + options.window_margin_px;
+
+  // 2. Local background and the noise at it.
+  cv::Mat frame_cv(h, w, CV_32FC1, const_cast<float*>(frame_dn.data().data())), box3;
+  cv::blur(frame_cv, box3, cv::Size(3, 3));
+  const int background_window = options.background_window_px > 0 ? options.background_window_px : 2 * half + 1;
+  cv::Mat background = LocalBackground(box3, background_window);
+  const double noise = BackgroundNoise(frame_dn, box3, background);
+
+  // 3. Dots as local maxima of the frame smoothed like a dot's image, one per spacing.
+  const cv::Mat smooth = SmoothLikeADot(frame_cv, scale.px_per_monitor_px, 0.5 * options.dot_radius_px);
+  cv::Mat height = smooth - background;
+  double brightest = 0;
+  cv::minMaxLoc(height, nullptr, &brightest);
+  const double threshold = std::max(options.threshold_sigma * noise, options.threshold_fraction * brightest);
+  const std::vector<Eigen::Vector2d> peaks =
+      SeparatedMaxima(height, threshold, scale, options.peak_separation_fraction * scale.spacing_monitor_px);
+
+  // 4. Centroids and fluxes, pixels shared by neighbouring windows split by the nearest dot.
+  const DotWindow window{frame_dn, smooth, background, half, saturation_dn, inv_t};
   std::vector<Blob> blobs;
-  // Windows of neighbouring dots may overlap on dense grids: each pixel counts only for the
-  // blob whose (threshold) centroid is nearest, a Voronoi split of the frame.
-  std::vector<int> kept;
-  for (int l = 1; l < num_labels; ++l) {
-    if (stats.at<int>(l, cv::CC_STAT_AREA) >= options.min_blob_area_px) kept.push_back(l);
+  for (const std::optional<Blob>& b : MeasureDots(window, peaks, threshold, camera)) {
+    if (b && b->pixels_above_threshold >= options.min_blob_area_px) blobs.push_back(*b);
   }
-  const int m = options.window_margin_px;
-  auto window = [&](int l, int* x0, int* y0, int* x1, int* y1) {
-    *x0 = std::max(0, stats.at<int>(l, cv::CC_STAT_LEFT) - m);
-    *y0 = std::max(0, stats.at<int>(l, cv::CC_STAT_TOP) - m);
-    *x1 = std::min(w - 1, stats.at<int>(l, cv::CC_STAT_LEFT) + stats.at<int>(l, cv::CC_STAT_WIDTH) - 1 + m);
-    *y1 = std::min(h - 1, stats.at<int>(l, cv::CC_STAT_TOP) + stats.at<int>(l, cv::CC_STAT_HEIGHT) - 1 + m);
-  };
-  auto centre = [&](int l) {
-    return Eigen::Vector2d(centroids.at<double>(l, 0) + 0.5, centroids.at<double>(l, 1) + 0.5);
-  };
-  for (int l : kept) {
-    int x0, y0, x1, y1;
-    window(l, &x0, &y0, &x1, &y1);
-    std::vector<Eigen::Vector2d> neighbours;
-    for (int o : kept) {
-      if (o == l) continue;
-      int ox0, oy0, ox1, oy1;
-      window(o, &ox0, &oy0, &ox1, &oy1);
-      if (ox0 <= x1 && ox1 >= x0 && oy0 <= y1 && oy1 >= y0) neighbours.push_back(centre(o));
-    }
-    const Eigen::Vector2d own = centre(l);
-    Blob blob;
-    blob.clipped = stats.at<int>(l, cv::CC_STAT_LEFT) < m || stats.at<int>(l, cv::CC_STAT_TOP) < m ||
-                   stats.at<int>(l, cv::CC_STAT_LEFT) + stats.at<int>(l, cv::CC_STAT_WIDTH) > w - m ||
-                   stats.at<int>(l, cv::CC_STAT_TOP) + stats.at<int>(l, cv::CC_STAT_HEIGHT) > h - m;
-    double sw = 0, sx = 0, sy = 0, flux = 0;
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        const Eigen::Vector2d p(x + 0.5, y + 0.5);
-        const double own_d2 = (p - own).squaredNorm();
-        bool mine = true;
-        for (const Eigen::Vector2d& n : neighbours) mine = mine && (p - n).squaredNorm() >= own_d2;
-        if (!mine) continue;
-        const double v = frame_dn.at(x, y);
-        const double s = v - background;
-        flux += s;
-        // Intensity-weighted centroid of the background-subtracted signal (negative noise
-        // excursions clamped so they cannot pull the centroid).
-        const double wgt = std::max(0.0, s);
-        sw += wgt;
-        sx += wgt * (x + 0.5);
-        sy += wgt * (y + 0.5);
-        blob.peak = std::max(blob.peak, s);
-        if (saturation_dn > 0 && v >= saturation_dn) blob.saturated = true;
-      }
-    }
-    if (!(sw > 0)) continue;
-    blob.centroid_px = Eigen::Vector2d(sx / sw, sy / sw);
-    blob.flux_dn_per_us = flux * inv_t;
-    const Eigen::Vector3d ray = PixelToCameraRay(camera, blob.centroid_px);
-    blob.normalized = ray.head<2>();
-    blobs.push_back(blob);
-  }
+  double peak_cut = 0;
   if (!blobs.empty() && options.min_peak_fraction > 0) {
-    std::vector<float> peaks;
-    for (const Blob& b : blobs) peaks.push_back(static_cast<float>(b.peak));
-    const double cut = options.min_peak_fraction * Median(peaks);
-    blobs.erase(std::remove_if(blobs.begin(), blobs.end(), [&](const Blob& b) { return b.peak < cut; }), blobs.end());
+    std::vector<float> peak_heights;
+    for (const Blob& b : blobs) peak_heights.push_back(static_cast<float>(b.peak));
+    peak_cut = options.min_peak_fraction * Median(peak_heights);
+    blobs.erase(std::remove_if(blobs.begin(), blobs.end(), [&](const Blob& b) { return b.peak < peak_cut; }),
+                blobs.end());
   }
+  std::vector<float> background_values(reinterpret_cast<const float*>(background.data),
+                                       reinterpret_cast<const float*>(background.data) + background.total());
+  const double median_background = Median(background_values);
   if (blobs.size() < 4) {
     return Status::Error("dots: found " + std::to_string(blobs.size()) + " dots in the all-dots frame (background " +
-                         std::to_string(background) + " DN, threshold " + std::to_string(threshold) +
-                         " DN); need at least 4: check exposure and that the monitor is in view");
+                         std::to_string(median_background) + " DN, noise " + std::to_string(noise) + " DN, threshold " +
+                         std::to_string(threshold) + " DN above the background); need at least 4: check exposure, " +
+                         "that the monitor is in view, and rig.monitor's dot_radius_px (--dot-radius-px)");
   }
 
   // Matching hypotheses: (A) the nominal geometry, (B) hull corners of blobs <-> hull corners
@@ -453,6 +669,7 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
   }
   if (seeds.empty()) return Status::Error("dots: cannot seed the grid match (nominal monitor not in front of the camera?)");
   const double ransac_threshold = 1.5 / camera.fx_px;  // 1.5 px in normalised units.
+  const std::vector<size_t> neighbour = NearestNeighbours(displayed_dots_px);
   // A regular grid matches itself after a half or quarter turn or a mirror, so several seeds
   // can match every dot; among those with the most matches (less one), the nominal geometry
   // decides: the hypothesis whose dot predictions are closest to the nominal ones wins.
@@ -466,8 +683,8 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
   int best_num = -1;
   for (const Eigen::Matrix3d& seed : seeds) {
     Hypothesis hyp;
-    hyp.num = MatchWithHomography(seed, displayed_dots_px, blobs, options.match_gate_fraction, ransac_threshold,
-                                  &hyp.match, &hyp.H);
+    hyp.num = MatchWithHomography(seed, displayed_dots_px, neighbour, blobs, options.match_gate_fraction,
+                                  ransac_threshold, &hyp.match, &hyp.H);
     for (const Eigen::Vector2d& dot : displayed_dots_px) {
       if (!have_nominal) break;
       hyp.distance_to_nominal += (ApplyH(hyp.H, dot) - ApplyH(seeds.front(), dot)).norm();
@@ -496,10 +713,54 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
 
   DotGeometryResult out;
   out.num_blobs = static_cast<int>(blobs.size());
-  out.num_matched = best_num;
   out.num_unmatched_blobs = out.num_blobs - best_num;
-  for (size_t d = 0; d < match.size(); ++d) out.num_clipped += match[d] >= 0 && blobs[match[d]].clipped;
-  out.background_dn_per_us = background * inv_t;
+
+  // 6. The grid as a prior: every displayed dot the homography puts inside the frame is measured
+  // at its place, windows split among all of them, found or not. A dot the maxima missed (merged
+  // into a neighbour's, or below a cut) is refined instead of lost, and a found dot's window no
+  // longer takes a missed neighbour's light.
+  std::vector<Eigen::Vector2d> seeds_px;
+  std::vector<size_t> seed_dot;
+  for (size_t d = 0; d < displayed_dots_px.size(); ++d) {
+    Eigen::Vector2d px;
+    if (match[d] >= 0) {
+      px = blobs[match[d]].centroid_px;
+    } else {
+      const Eigen::Vector2d xy = ApplyH(H, displayed_dots_px[d]);
+      if (!xy.allFinite() || xy.norm() > 10) continue;  // Far outside any lens's field.
+      px = NormalizedToPixel(camera, xy);
+      if (!(px.x() >= 0 && px.y() >= 0 && px.x() < w && px.y() < h)) continue;
+    }
+    seeds_px.push_back(px);
+    seed_dot.push_back(d);
+  }
+  const std::vector<std::optional<Blob>> remeasured = MeasureDots(window, seeds_px, threshold, camera);
+  std::vector<Blob> found;
+  std::vector<int> found_of_dot(displayed_dots_px.size(), -1);
+  for (size_t k = 0; k < seed_dot.size(); ++k) {
+    const size_t d = seed_dot[k];
+    std::optional<Blob> blob = remeasured[k];
+    if (match[d] >= 0) {
+      if (!blob) blob = blobs[match[d]];
+    } else {
+      // Missed by the maxima: a dot only if its window holds a dot's signal where the grid puts it.
+      const Eigen::Vector2d predicted = ApplyH(H, displayed_dots_px[d]);
+      const double spacing = (ApplyH(H, displayed_dots_px[neighbour[d]]) - predicted).norm();
+      if (!blob || blob->peak < std::max(threshold, peak_cut) ||
+          blob->pixels_above_threshold < options.min_blob_area_px ||
+          !((blob->normalized - predicted).norm() < options.match_gate_fraction * spacing)) {
+        continue;
+      }
+      ++out.num_found_by_grid_prior;
+    }
+    found_of_dot[d] = static_cast<int>(found.size());
+    found.push_back(*blob);
+  }
+  blobs = std::move(found);
+  match = std::move(found_of_dot);
+  out.num_matched = static_cast<int>(blobs.size());
+  for (const Blob& b : blobs) out.num_clipped += b.clipped;
+  out.background_dn_per_us = median_background * inv_t;
   out.noise_dn_per_us = noise * inv_t;
   out.homography_rms_px = best_rms * camera.fx_px;
   // Dai Section 4.1: "projected to the 3D plane (x, y, d)", with d from the manifest; with
@@ -515,6 +776,19 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
                                                                  monitor.sample_from_monitor.translation);
   *result = std::move(out);
   return Status::Ok();
+}
+
+double ResolveDotRadiusPx(double option_px, const MonitorInfo& monitor, std::string* source) {
+  if (option_px > 0) {
+    *source = "option";
+    return option_px;
+  }
+  if (monitor.dot_radius_px > 0) {
+    *source = "manifest";
+    return monitor.dot_radius_px;
+  }
+  *source = "default";
+  return kDefaultDotRadiusPx;
 }
 
 std::string MonitorDistanceWarning(double distance_error_m, double distance_error_sigma_m) {

@@ -4,14 +4,27 @@
 // detected in the image, and then projected to the 3D plane (x, y, d)." and "The color and
 // intensity of the monitor is measured by directly capturing its output" (L_q in Eq. 12).
 //
-// Steps: background subtraction (robust median/MAD of the frame), thresholding and connected
-// components, intensity-weighted sub-pixel centroids over a window around each blob; matching of
-// blobs to the displayed grid by a homography (monitor px -> undistorted image) fitted with
-// RANSAC, seeded both from the nominal rig geometry and from the four corners of the blobs'
-// convex hull (the better hypothesis wins); back-projection of each centroid's camera ray to
-// the monitor plane (3D position in the sample frame); the dot's radiance as its integrated
-// signal divided by its projected area; residuals against the displayed grid after a fitted
-// in-plane rigid correction of the monitor pose.
+// Steps:
+//  1. the nominal geometry's scale: how a monitor pixel maps into the image at the grid's centre
+//     (a dot's image size, the dots' spacing in the image);
+//  2. a local background (grey opening of the frame with a window larger than a dot's image, so
+//     a frame mostly lit by a dense grid keeps its gaps as background) and the noise from
+//     differences of neighbouring dark pixels;
+//  3. dots as local maxima of the frame smoothed by a kernel shaped like a dot's image (a convex
+//     disc blurred by a Gaussian is unimodal, so touching dots keep separate maxima), one per
+//     displayed spacing;
+//  4. intensity-weighted sub-pixel centroids and fluxes over a window around each dot, pixels
+//     shared by neighbouring windows split by the nearest dot;
+//  5. matching to the displayed grid by a homography (monitor px -> undistorted image) fitted
+//     with RANSAC, seeded both from the nominal rig geometry and from the four corners of the
+//     dots' convex hull (the better hypothesis wins);
+//  6. the grid as a prior: every displayed dot the homography puts inside the frame is measured
+//     at its predicted place (windows split among all dots, found or not), so a dot missed by
+//     step 3 is refined, not lost;
+//  7. back-projection of each centroid's camera ray to the monitor plane (3D position in the
+//     sample frame); the dot's radiance as its integrated signal divided by its projected area;
+//     residuals against the displayed grid after a fitted in-plane rigid correction of the
+//     monitor pose. Dots outside the view, not found or cut by the border are placed from it.
 #pragma once
 
 #include <Eigen/Core>
@@ -26,13 +39,20 @@
 namespace thinslab {
 
 struct DotGeometryOptions {
-  double dot_radius_px = 2.0;        // Radius of a displayed dot, monitor px (for L_q's area).
-  double threshold_sigma = 8;        // Detection threshold above background, in noise sigmas,
-  double threshold_fraction = 0.25;  // and at least this fraction of the brightest 3x3 mean (so
-                                     // blur tails do not bridge dense dots).
-  double min_peak_fraction = 0.2;    // ... and at least this fraction of the median blob peak.
-  int min_blob_area_px = 2;          // Smaller blobs are noise.
-  int window_margin_px = 3;          // Centroid/flux window: blob bounding box grown by this.
+  double dot_radius_px = 2.0;        // Radius of a displayed dot, monitor px (window sizes, L_q's area).
+  // Detection (issue #23: dense grids whose all-dots frame is mostly lit, dots 1.3 diameters
+  // apart that touch in the image). A dot is a local maximum of the frame smoothed by a kernel
+  // shaped like a dot's image, above a local background, at least
+  double threshold_sigma = 8;        // this many noise sigmas above the background,
+  double threshold_fraction = 0.25;  // this fraction of the brightest dot's height,
+  double min_peak_fraction = 0.2;    // and this fraction of the median dot's height;
+  int min_blob_area_px = 2;          // with at least this many (smoothed) pixels above the threshold.
+  // Two maxima closer than this fraction of the displayed dots' spacing (measured on the screen,
+  // through the nominal geometry) are one dot.
+  double peak_separation_fraction = 0.45;
+  int window_margin_px = 3;          // Centroid/flux window: a dot's image radius plus this.
+  // Side of the local background's window [camera px]; 0 = twice the window's half-size plus 1.
+  int background_window_px = 0;
   double match_gate_fraction = 0.35; // Match radius as a fraction of the local dot spacing in the image.
   // Move the monitor plane along its normal until the back-projected grid has the displayed
   // pitch (DotGeometryResult::grid_scale 1): measures d from the one all-dots view, to the
@@ -82,7 +102,9 @@ struct DotGeometryResult {
   double distance_correction_m = 0; // refine_distance: how far the plane was moved (> 0: towards the camera).
   int num_blobs = 0, num_matched = 0, num_unmatched_blobs = 0;
   int num_clipped = 0;  // Matched dots cut by the image border (DotRecord::clipped).
-  double background_dn_per_us = 0, noise_dn_per_us = 0;
+  // Dots the local maxima missed but measured where the matched grid puts them (step 6).
+  int num_found_by_grid_prior = 0;
+  double background_dn_per_us = 0, noise_dn_per_us = 0;  // Median local background; its noise.
 };
 
 // `frame_dn`: the all-dots frame in DN with the black level already removed (session_io
@@ -100,6 +122,14 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
 // calibrated camera (0.046 mm; calib/dot_geometry_test, WholeCalibrationChainFromChessboardViews).
 inline constexpr double kMonitorDistanceWarningM = 0.25e-3;
 std::string MonitorDistanceWarning(double distance_error_m, double distance_error_sigma_m);
+
+// The radius of the displayed dots [monitor px]: `option_px` when > 0 (--dot-radius-px), else the
+// manifest's rig.monitor.dot_radius_px (format 1.4), else kDefaultDotRadiusPx. `*source` says
+// which ("option", "manifest", "default"); with "default" the caller warns (L_q and the A of Eq.
+// 12 scale with the radius squared, their product with the radius not at all, so a wrong radius
+// only shows in the radiance values and their saturation checks).
+inline constexpr double kDefaultDotRadiusPx = 2.0;
+double ResolveDotRadiusPx(double option_px, const MonitorInfo& monitor, std::string* source);
 
 // Point where the camera ray through thinslab pixel `pixel` meets the monitor plane, sample
 // frame. False if the ray is parallel to the plane or the plane is behind the camera.

@@ -16,8 +16,9 @@
 namespace thinslab {
 
 constexpr int kSessionFormatMajor = 1;
-// 1.1: stream_statistics, acquisition; 1.2: camera frame ids; 1.3: linear frames, noise fields.
-constexpr int kSessionFormatMinor = 3;
+// 1.1: stream_statistics, acquisition; 1.2: camera frame ids; 1.3: linear frames, noise fields;
+// 1.4: rig.monitor.dot_radius_px.
+constexpr int kSessionFormatMinor = 4;
 constexpr char kSessionManifestName[] = "session.json";
 // Largest board distance (sample to board/screen) any rig, fit or simulation accepts: a shadow
 // map or laser lobe spreads over millimetres to centimetres; 1e308 m overflowed the projection.
@@ -94,6 +95,9 @@ struct MonitorInfo {
   double pixel_pitch_m = 0;
   int width_px = 0;
   int height_px = 0;
+  // Radius of a displayed dot [monitor px] (the disc the pattern window draws); 0 = not given
+  // (the fits then assume 2 px and say so). Format 1.4.
+  double dot_radius_px = 0;
 };
 
 struct RigInfo {

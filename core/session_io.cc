@@ -522,6 +522,7 @@ Status ManifestParser::ParseRig(const Json& j, const std::string& path, RigInfo*
         Number(*monitor, mp, "pixel_pitch_m", Need::kRequired, &m.pixel_pitch_m));
     THINSLAB_RETURN_IF_ERROR(Int(*monitor, mp, "width_px", Need::kRequired, &m.width_px));
     THINSLAB_RETURN_IF_ERROR(Int(*monitor, mp, "height_px", Need::kRequired, &m.height_px));
+    THINSLAB_RETURN_IF_ERROR(Number(*monitor, mp, "dot_radius_px", Need::kOptional, &m.dot_radius_px));
   }
   return Status::Ok();
 }
@@ -778,6 +779,7 @@ OrderedJson SessionToJson(const Session& session) {
     m["pixel_pitch_m"] = rig.monitor.pixel_pitch_m;
     m["width_px"] = rig.monitor.width_px;
     m["height_px"] = rig.monitor.height_px;
+    if (rig.monitor.dot_radius_px > 0) m["dot_radius_px"] = rig.monitor.dot_radius_px;
     rig_json["monitor"] = std::move(m);
   }
   root["rig"] = std::move(rig_json);
@@ -1093,6 +1095,10 @@ Status ValidateSession(const Session& session, const std::string& session_dir) {
       return error("rig.monitor.width_px", "must be > 0, got " + std::to_string(m.width_px));
     if (m.height_px <= 0)
       return error("rig.monitor.height_px", "must be > 0, got " + std::to_string(m.height_px));
+    if (!(m.dot_radius_px >= 0 && m.dot_radius_px <= 1000)) {
+      return error("rig.monitor.dot_radius_px", "must be in [0, 1000] monitor px (0 = not given), got " +
+                                                    Num(m.dot_radius_px));
+    }
   }
 
   // Frames.

@@ -103,6 +103,7 @@ Session MakeFullSession() {
   s.rig.monitor.pixel_pitch_m = 2.5e-4;
   s.rig.monitor.width_px = 1920;
   s.rig.monitor.height_px = 1080;
+  s.rig.monitor.dot_radius_px = 2.5;
 
   FrameRecord shadow;
   shadow.index = 0;
@@ -229,6 +230,7 @@ void ExpectSessionsEqual(const Session& a, const Session& b) {
   EXPECT_EQ(a.rig.monitor.pixel_pitch_m, b.rig.monitor.pixel_pitch_m);
   EXPECT_EQ(a.rig.monitor.width_px, b.rig.monitor.width_px);
   EXPECT_EQ(a.rig.monitor.height_px, b.rig.monitor.height_px);
+  EXPECT_EQ(a.rig.monitor.dot_radius_px, b.rig.monitor.dot_radius_px);
 
   ASSERT_EQ(a.frames.size(), b.frames.size());
   for (size_t i = 0; i < a.frames.size(); ++i) {
@@ -293,7 +295,7 @@ TEST_F(SessionIoTest, WritesTheDocumentedLayout) {
   ASSERT_TRUE(ReadFileToString(manifest(), &text).ok());
   const nlohmann::json j = nlohmann::json::parse(text);
   EXPECT_EQ(j["format"], "thinslab-session");
-  EXPECT_EQ(j["format_version"], "1.3");
+  EXPECT_EQ(j["format_version"], "1.4");
   EXPECT_EQ(j["rig"]["cameras"][0]["cam_from_sample"]["rotation_wxyz"].size(), 4u);
   EXPECT_EQ(j["rig"]["cameras"][0]["cam_from_sample"]["translation_m"].size(), 3u);
   EXPECT_EQ(j["frames"][0]["camera"], "cam0");

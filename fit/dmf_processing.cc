@@ -65,7 +65,7 @@ Status MeasureDotGeometry(const std::string& session_dir, const Session& session
                          "cannot be calibrated (Dai et al. Sec. 4.1 locate them without the sample)");
   }
   DotGeometryOptions geometry_options = options.dot_geometry;
-  geometry_options.dot_radius_px = options.dot_radius_px;
+  geometry_options.dot_radius_px = report->dot_radius_px;
   std::vector<const FrameRecord*> by_exposure = all_dots;
   std::sort(by_exposure.begin(), by_exposure.end(),
             [](const FrameRecord* a, const FrameRecord* b) { return a->exposure_time_us > b->exposure_time_us; });
@@ -86,6 +86,7 @@ Status MeasureDotGeometry(const std::string& session_dir, const Session& session
     }
     *geometry = g;
     report->dot_geometry_source = f->file;
+    report->dots_found_by_grid_prior = g.num_found_by_grid_prior;
     have_geometry = true;
     if (std::none_of(g.dots.begin(), g.dots.end(), [](const DotRecord& d) { return d.measured() && d.saturated; })) break;
   }
@@ -106,7 +107,9 @@ Status MeasureDotGeometry(const std::string& session_dir, const Session& session
 bool DmfProcessingOptions::Check(std::string* error) const {
   std::ostringstream e;
   if (pitch_m < 0) e << "pitch must be >= 0, got " << pitch_m;
-  else if (!(dot_radius_px > 0)) e << "dot_radius_px (--dot-radius-px) must be > 0 px, got " << dot_radius_px;
+  else if (!(dot_radius_px >= 0 && dot_radius_px <= 1000)) {
+    e << "dot_radius_px (--dot-radius-px) must be in (0, 1000] px (0: the manifest's), got " << dot_radius_px;
+  }
   else if (!(max_saturated_dots >= 0 && max_saturated_dots <= 1)) e << "max_saturated_dots must be in [0, 1]";
   else if (!(max_saturated_points >= 0 && max_saturated_points <= 1)) e << "max_saturated_points must be in [0, 1]";
   else if (supersample < 1 || supersample > 8) e << "supersample must be in [1, 8], got " << supersample;
@@ -200,6 +203,11 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   auto t = std::chrono::steady_clock::now();
   DotGeometryResult geometry;
   const RigMonitorCalibration& calibrated = report->calibration.monitor;
+  report->dot_radius_px = ResolveDotRadiusPx(options.dot_radius_px, monitor, &report->dot_radius_source);
+  if (calibrated.present) {
+    report->dot_radius_px = calibrated.dot_radius_px;
+    report->dot_radius_source = report->calibration.rig_file;
+  }
   if (calibrated.present) {
     if (options.dot_geometry.refine_distance) {
       return Status::Error(report->calibration.rig_file +
@@ -309,7 +317,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(session_dir, session, camera, &report->noise));
   THINSLAB_RETURN_IF_ERROR(MeasureDarkLevel(session_dir, session, camera, darks, rectifier, report));
   // A of Eq. 12 with the dot radius L_q was measured with (L_q A is the dot's intensity).
-  const double dot_radius_px = calibrated.present ? calibrated.dot_radius_px : options.dot_radius_px;
+  const double dot_radius_px = calibrated.present ? calibrated.dot_radius_px : report->dot_radius_px;
   const double dot_area = kPi * Sqr(dot_radius_px * monitor.pixel_pitch_m);
   std::vector<int> saturated_dots(np, 0);
   int q = 0;

@@ -31,7 +31,9 @@ namespace thinslab {
 
 struct DmfProcessingOptions {
   double pitch_m = 0;          // Sample grid pitch; 0 = the manifest's sample pixel pitch.
-  double dot_radius_px = 2.0;  // Radius of a displayed dot [monitor px] (A of Eq. 12 and L_q).
+  // Radius of a displayed dot [monitor px] (A of Eq. 12, L_q, the detection windows); 0 = the
+  // manifest's rig.monitor.dot_radius_px, else 2 (ResolveDotRadiusPx).
+  double dot_radius_px = 0;
   bool hold_out = false;       // Hold out every other dot ((ix + iy) odd) from the fit.
   // A point whose dot frames saturated in every exposure for more than this fraction of its
   // in-lobe dots is flagged saturated; more than `max_saturated_points` of such points is an error.
@@ -71,10 +73,15 @@ struct DmfProcessingReport {
   ExposureCheck exposure_check;
   std::string exposure_warning;
   double median_dot_radiance = 0;  // L_q [DN/us].
+  // The dot radius used and where it came from: "option", "manifest", "default" (assumed 2 px:
+  // the caller warns) or the calib/rig.json that holds the dot calibration.
+  double dot_radius_px = 0;
+  std::string dot_radius_source;
   // Dots placed from the fitted monitor geometry instead of a centroid (outside the camera's
   // view, not found, or cut by the image border; DotRecord::placed_from_geometry), of which cut by
   // the border (DotRecord::clipped). Their L_q is the median.
   int dots_placed_from_geometry = 0, dots_clipped = 0;
+  int dots_found_by_grid_prior = 0;  // Measured where the matched grid puts them (DotGeometryResult).
   int saturated_points = 0, outside_points = 0;
   double geometry_s = 0, merge_s = 0, total_s = 0;
   size_t slice_bytes = 0;  // Memory of the slice matrix.

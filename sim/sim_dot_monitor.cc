@@ -98,6 +98,7 @@ SimDotMonitor::SimDotMonitor(const SimDotMonitorOptions& options)
   monitor_.pixel_pitch_m = o.monitor_pixel_pitch_m;
   monitor_.width_px = o.monitor_width_px;
   monitor_.height_px = o.monitor_height_px;
+  monitor_.dot_radius_px = o.dot_radius_px;
   // Monitor frame (docs/format.md 2.3.6): x along a row, y down the screen, z into the screen.
   // The screen faces +z of the sample frame (towards sample and camera), so monitor z maps to
   // sample -z: a half turn about x, then the in-plane rotation.

@@ -712,6 +712,10 @@ std::vector<Case> Cases() {
         {"frames/cam0/all_dots/"}),
       C("calib_dots_monitor_width_zero", "dots", Set("/rig/monitor/width_px", 0), "calib dots {in}",
         {"rig.monitor.width_px"}),
+      C("calib_dots_manifest_dot_radius_negative", "dots", Set("/rig/monitor/dot_radius_px", -2), "calib dots {in}",
+        {"rig.monitor.dot_radius_px"}),
+      C("fit_dmf_manifest_dot_radius_text", "dots", Set("/rig/monitor/dot_radius_px", "two"),
+        "fit dmf {in} --pitch-mm 8", {"rig.monitor.dot_radius_px"}),
 
       // ---- thinslab calib response ----
       C("calib_response_method_unknown", "laser", none, "calib response {in} --method mitsunaga", {"--method"}),

@@ -16,17 +16,12 @@
 
 #include "core/exr_io.h"
 #include "core/file.h"
+#include "tests/testing/json_file.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {
 namespace {
-
-nlohmann::json ReadJson(const std::string& path) {
-  std::string text;
-  EXPECT_TRUE(ReadFileToString(path, &text).ok()) << path;
-  return nlohmann::json::parse(text, nullptr, false);
-}
 
 void RunOk(const std::string& args) {
   const RunResult run = RunThinslab(args);
@@ -79,7 +74,7 @@ TEST(LinearFrames, ShadowMapFitIsInvariantToTheValueScale) {
     EXPECT_EQ(info.exit_code, 0) << info.output;
     EXPECT_EQ(info.output.find("warning"), std::string::npos) << info.output;  // Linear: nothing clips.
     RunOk("fit tau " + capture + " --out " + (dir / ("tau" + std::to_string(k))));
-    summary[k] = ReadJson(dir / ("tau" + std::to_string(k)) + "/summary.json");
+    summary[k] = ReadJsonFile(dir / ("tau" + std::to_string(k)) + "/summary.json");
     ASSERT_TRUE(ReadExr(dir / ("tau" + std::to_string(k)) + "/tau.exr", &maps[k]).ok());
   }
   EXPECT_EQ(summary[0]["result"], "success");
@@ -102,8 +97,8 @@ TEST(LinearFrames, LaserLobeFromOneLinearExposureIsInvariantToTheValueScale) {
         " --exposures-us 20000 --camera-width-px 480 --camera-height-px 360 --photons 60000");
     const std::string out = dir / ("phase" + std::to_string(k));
     RunOk("fit phase " + capture + " --out " + out);
-    summary[k] = ReadJson(out + "/summary.json");
-    ladder[k] = ReadJson(out + "/ladder.json");
+    summary[k] = ReadJsonFile(out + "/summary.json");
+    ladder[k] = ReadJsonFile(out + "/ladder.json");
   }
   ASSERT_EQ(summary[0]["result"], "success");
   EXPECT_EQ(summary[1]["result"], "success");
@@ -141,7 +136,7 @@ TEST(LinearFrames, DeclaredNoiseIsUsedAndRecorded) {
   RunOk("sim laser " + capture +
       " --linear-float-frames true --value-scale 1000 --exposures-us 20000 --camera-width-px 240 "
       "--camera-height-px 180 --photons 20000");
-  nlohmann::json manifest = ReadJson(capture + "/session.json");
+  nlohmann::json manifest = ReadJsonFile(capture + "/session.json");
   nlohmann::json& camera = manifest["rig"]["cameras"][0];
   EXPECT_EQ(camera["frame_values"], "linear");
   EXPECT_FALSE(camera.contains("saturation_dn"));  // Nothing saturates in linear frames.
@@ -152,7 +147,7 @@ TEST(LinearFrames, DeclaredNoiseIsUsedAndRecorded) {
   ASSERT_EQ(info.exit_code, 0) << info.output;
   EXPECT_NE(info.output.find("read noise 6000"), std::string::npos) << info.output;
   RunOk("fit phase " + capture + " --out " + (dir / "phase"));
-  const nlohmann::json summary = ReadJson(dir / "phase/summary.json");
+  const nlohmann::json summary = ReadJsonFile(dir / "phase/summary.json");
   EXPECT_EQ(summary["noise"]["method"], "declared");
   EXPECT_NEAR(summary["noise"]["variance_floor"].get<double>(), 36e6, 1);
   EXPECT_NEAR(summary["noise"]["variance_per_value"].get<double>(), kScale, 1e-9);
@@ -171,7 +166,7 @@ TEST(LinearFramesDotScan, DmfFitAndLadderAreInvariantToTheValueScale) {
     const std::string out = dir / ("dmf" + std::to_string(k));
     RunOk("fit dmf " + capture + " --out " + out +
         " --pitch-mm 4 --hold-out true --cluster-fraction 0 --ladder true --ladder-tile 2");
-    summary[k] = ReadJson(out + "/summary.json");
+    summary[k] = ReadJsonFile(out + "/summary.json");
     ASSERT_TRUE(ReadExr(out + "/maps.exr", &maps[k]).ok());
     ASSERT_TRUE(ReadExr(out + "/ladder.exr", &rungs[k]).ok());
   }
