@@ -212,6 +212,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   run.processing.incomplete_capture =
       run.allow_incomplete_capture ? IncompleteCapture::kAccept : IncompleteCapture::kRefuse;
   run.fit.point.eta = run.eta > 0 ? run.eta : session.rig.sample.glass_ior;
+  run.processing.eta = run.fit.point.eta;
   run.fit.cluster = run.cluster_fraction > 0;
   run.fit.clustering.fraction = run.cluster_fraction > 0 ? run.cluster_fraction : 1;
   std::string error;
@@ -389,6 +390,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["status_counts"] = counts;
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
   j["dot_radius"] = {{"monitor_px", processing.dot_radius_px}, {"source", processing.dot_radius_source}};
+  j["glass_thickness_m"] = processing.glass_thickness_m;
   j["dot_positions"] = {{"measured", processing.num_dots - processing.dots_placed_from_geometry},
                         {"placed_from_geometry", processing.dots_placed_from_geometry},
                         {"found_by_grid_prior", processing.dots_found_by_grid_prior},
@@ -503,6 +505,9 @@ int RunFitDmf(int argc, char** argv) {
                  "set the monitor distance d from the all-dots grid's scale (not with calib dots' rig.json)");
   // rig.json's dot radius and positions replace these when it holds calib dots' dot calibration.
   AddDotDetectionOptions(&parser, &run.processing.dot_geometry, &run.processing.dot_radius_px);
+  double glass_thickness_mm = -1;
+  parser.AddDouble("glass-thickness-mm", &glass_thickness_mm,
+                   "slab thickness [mm] (where the dots' light enters); -1 = the manifest's rig.sample.glass_thickness_m");
   AddCalibrationOptions(&parser, &run.processing.calibration);
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
   parser.AddInt("threads", &run.fit.num_threads, "threads");
@@ -521,6 +526,12 @@ int RunFitDmf(int argc, char** argv) {
   }
   if (status.ok()) status = CheckDotRadiusOption(parser, run.processing.dot_radius_px);
   run.processing.pitch_m = pitch_mm * 1e-3;
+  run.processing.glass_thickness_m = glass_thickness_mm < 0 ? -1 : glass_thickness_mm * 1e-3;
+  if (status.ok() && parser.IsSet("glass-thickness-mm") && glass_thickness_mm != -1 &&
+      !(glass_thickness_mm >= 0 && glass_thickness_mm <= 50)) {
+    status = Status::Error("--glass-thickness-mm: must be in [0, 50] mm (or -1: the manifest's), got " +
+                           std::to_string(glass_thickness_mm));
+  }
   if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "dmf");
   run.options_ini = parser.ToIni();
   std::string brief;

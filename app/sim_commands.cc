@@ -161,6 +161,9 @@ int RunSimDotScan(int argc, char** argv) {
   parser.AddDouble("dot-radius-px", &options.rig.dot_radius_px, "radius of a displayed dot [monitor px]");
   parser.AddInt("photons-k", &photons_k, "Monte Carlo photons per rough region, thousands");
   parser.AddInt("table-bins", &options.sample.table_bins, "N x N cells of each region's BTDF table");
+  double glass_thickness_mm = 0;
+  parser.AddDouble("glass-thickness-mm", &glass_thickness_mm,
+                   "slab thickness [mm]: moves where each dot's light enters (traced mean path offsets); 0 = thin");
   parser.AddInt("threads", &options.sample.num_threads, "threads tracing the region tables");
   parser.AddDouble("truth-pitch-m", &options.truth_pitch_m, "pitch of ground_truth/regions.exr and the sample grid [m]");
   parser.AddBool("noise", &options.rig.sensor.enable_noise, "simulate shot and read noise");
@@ -178,6 +181,7 @@ int RunSimDotScan(int argc, char** argv) {
   }
   if (status.ok() && photons_k < 1) status = Status::Error("--photons-k: must be >= 1 (thousands of photons)");
   options.sample.photons_per_region = static_cast<int64_t>(photons_k) * 1000;
+  options.sample.thickness_m = glass_thickness_mm * 1e-3;
   SyntheticDotScanResult result;
   NewFolderGuard new_output(out_dir);
   if (status.ok()) status = SynthesizeDotScanSession(options, out_dir, &result);

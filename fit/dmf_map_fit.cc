@@ -26,8 +26,20 @@ Eigen::Vector3d DmfSliceSet::PointPosition(int p) const {
   return Eigen::Vector3d(grid_min_m.x() + (col + 0.5) * pitch_m, grid_min_m.y() + (row + 0.5) * pitch_m, 0);
 }
 
+Eigen::Vector3d DmfSliceSet::LightEntryPoint(int p) const {
+  const Eigen::Vector3d x = PointPosition(p);
+  if (!(glass_thickness_m > 0)) return x;
+  // Snell at the flat face: the transverse part of the unit direction shrinks by 1/eta.
+  const Eigen::Vector3d o = (camera_centre - x).normalized();
+  const Eigen::Vector2d inside_xy = -o.head<2>() / eta;
+  const double inside_z = std::sqrt(std::max(1e-12, 1 - inside_xy.squaredNorm()));
+  const Eigen::Vector2d lateral = glass_thickness_m * inside_xy / inside_z;
+  return Eigen::Vector3d(x.x() + lateral.x(), x.y() + lateral.y(), -glass_thickness_m);
+}
+
 DmfSlice DmfSliceSet::Slice(int p) const {
   const Eigen::Vector3d x = PointPosition(p);
+  const Eigen::Vector3d entry = LightEntryPoint(p);
   DmfSlice slice;
   slice.o = SampleToOptical((camera_centre - x).normalized());
   const int nd = num_dots();
@@ -45,7 +57,7 @@ DmfSlice DmfSliceSet::Slice(int p) const {
   }
   const size_t base = static_cast<size_t>(p) * nd;
   for (int q = 0; q < nd; ++q) {
-    const Eigen::Vector3d to_dot = dot_positions[q] - x;
+    const Eigen::Vector3d to_dot = dot_positions[q] - entry;
     const double r = to_dot.norm();
     slice.i[q] = SampleToOptical(to_dot / r);
     slice.value[q] = value[base + q];
@@ -71,6 +83,13 @@ Status DmfSliceSet::Check() const {
     if (!(p.z() < 0)) return Status::Error("slice set: dot positions must lie behind the sample (z < 0)");
   }
   if (!(camera_centre.z() > 0)) return Status::Error("slice set: camera must be on the +z side of the sample");
+  if (!(glass_thickness_m >= 0) || !(eta > 1)) return Status::Error("slice set: need thickness >= 0 and eta > 1");
+  for (const auto& p : dot_positions) {
+    if (!(p.z() < -glass_thickness_m)) {
+      return Status::Error("slice set: a dot lies within the slab's thickness (" + std::to_string(glass_thickness_m) +
+                           " m) of the sample; check rig.sample.glass_thickness_m and the monitor distance");
+    }
+  }
   return Status::Ok();
 }
 

@@ -29,6 +29,9 @@ struct DmfSliceSet {
   std::vector<Eigen::Vector3d> dot_positions;   // p_q, sample frame [m].
   double dot_cell_area_m2 = 0;                  // Monitor area per dot of the grid (for d omega).
   Eigen::Vector3d camera_centre = Eigen::Vector3d::Zero();  // Sample frame [m].
+  // The slab: z = 0 is the face the camera sees, the light enters the face at z = -thickness.
+  double glass_thickness_m = 0;
+  double eta = 1.5;
   std::vector<float> value;   // R [1/sr], point-major: value[p * num_dots + q].
   std::vector<float> sigma;   // Its standard deviation, same layout (empty: unknown).
   std::vector<uint8_t> train; // Per dot: 1 fitted, 0 held out.
@@ -37,6 +40,12 @@ struct DmfSliceSet {
   int num_points() const { return width * height; }
   int num_dots() const { return static_cast<int>(dot_positions.size()); }
   Eigen::Vector3d PointPosition(int p) const;
+  // Where the light seen at point p entered the slab (issue #23 section 5): the camera's ray
+  // refracted into the slab at the flat mean surface, followed down to the monitor-side face,
+  // x + t (d_xy / |d_z|) at z = -t; the specular path, which the lobe's peak follows whatever
+  // the roughness (the traced mean of all paths differs by second-order terms;
+  // docs/models/dual_microfacet_fit.md). PointPosition(p) when the thickness is 0.
+  Eigen::Vector3d LightEntryPoint(int p) const;
   // Slice of point p in the optical frame (light side +z), rho_d by Eq. 14.
   DmfSlice Slice(int p) const;
   Status Check() const;

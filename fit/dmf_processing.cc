@@ -113,6 +113,8 @@ bool DmfProcessingOptions::Check(std::string* error) const {
   else if (!(max_saturated_dots >= 0 && max_saturated_dots <= 1)) e << "max_saturated_dots must be in [0, 1]";
   else if (!(max_saturated_points >= 0 && max_saturated_points <= 1)) e << "max_saturated_points must be in [0, 1]";
   else if (supersample < 1 || supersample > 8) e << "supersample must be in [1, 8], got " << supersample;
+  else if (!(glass_thickness_m <= 0.05)) e << "glass_thickness_m (--glass-thickness-mm) must be <= 50 mm";
+  else if (!(eta == 0 || (eta > 1 && eta <= 4))) e << "eta must be 0 (the manifest's) or in (1, 4], got " << eta;
   *error = e.str();
   return error->empty();
 }
@@ -304,6 +306,11 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   slices->dot_cell_area_m2 = step_x * step_y * Sqr(monitor.pixel_pitch_m);
   const Eigen::Matrix3d r = camera.cam_from_sample.rotation.toRotationMatrix();
   slices->camera_centre = -r.transpose() * camera.cam_from_sample.translation;
+  // The slab's thickness moves where each dot's light enters (DmfSliceSet::LightEntryPoint).
+  slices->glass_thickness_m =
+      options.glass_thickness_m >= 0 ? options.glass_thickness_m : session.rig.sample.glass_thickness_m;
+  slices->eta = options.eta > 0 ? options.eta : session.rig.sample.glass_ior;
+  report->glass_thickness_m = slices->glass_thickness_m;
   const int np = slices->num_points(), nd = static_cast<int>(displayed.size());
   slices->value.assign(static_cast<size_t>(np) * nd, 0.0f);
   slices->sigma.assign(static_cast<size_t>(np) * nd, 0.0f);
@@ -340,7 +347,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     const double l_q = dot.saturated || !dot.measured() ? median_radiance : dot.radiance_dn_per_us;
     for (int p = 0; p < np; ++p) {
       const int x = p % grid.width_px, y = p / grid.width_px;
-      const Eigen::Vector3d to_dot = dot.position_in_sample_m - slices->PointPosition(p);
+      const Eigen::Vector3d to_dot = dot.position_in_sample_m - slices->LightEntryPoint(p);
       const double dist2 = to_dot.squaredNorm();
       const double cos2 = Sqr(to_dot.z()) / dist2;  // cos_e (z . i_q): monitor parallel to the sample.
       const double scale = dist2 / (l_q * dot_area * cos2);

@@ -40,6 +40,10 @@ struct DmfProcessingOptions {
   double max_saturated_dots = 0.02;
   double max_saturated_points = 0.5;
   int supersample = 2;         // Rectification sub-samples per grid pixel and axis.
+  // Slab thickness [m] (where each dot's light enters, DmfSliceSet::LightEntryPoint); < 0 = the
+  // manifest's rig.sample.glass_thickness_m. eta: the slab's index for it; 0 = rig.sample.glass_ior.
+  double glass_thickness_m = -1;
+  double eta = 0;
   DotGeometryOptions dot_geometry;
   // SESSION/calib/rig.json (camera intrinsics, pose and, from `thinslab calib dots`, the dot
   // positions and radiances, which then replace step 1) and response.json (linearisation).
@@ -73,6 +77,7 @@ struct DmfProcessingReport {
   ExposureCheck exposure_check;
   std::string exposure_warning;
   double median_dot_radiance = 0;  // L_q [DN/us].
+  double glass_thickness_m = 0;    // The thickness the fit used.
   // The dot radius used and where it came from: "option", "manifest", "default" (assumed 2 px:
   // the caller warns) or the calib/rig.json that holds the dot calibration.
   double dot_radius_px = 0;

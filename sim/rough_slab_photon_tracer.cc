@@ -236,6 +236,9 @@ RoughSlabPhotonTracerResult TraceRoughSlab(const RoughSlabPhotonTracerOptions& o
   result.num_photons = options.num_photons;
   result.transmitted_counts.assign(static_cast<size_t>(options.num_bins) * options.num_bins, 0);
   result.transmitted_by_hits.assign(options.max_interactions + 1, 0);
+  result.transmitted_once_counts.assign(result.transmitted_counts.size(), 0);
+  result.once_offset_x.assign(result.transmitted_counts.size(), 0.0);
+  result.once_offset_y.assign(result.transmitted_counts.size(), 0.0);
   int64_t reflected = 0, transmitted = 0, masked = 0, capped = 0;
   std::mt19937_64 rng(options.seed);
   const double inv_eta = 1.0 / options.eta;
@@ -255,12 +258,14 @@ RoughSlabPhotonTracerResult TraceRoughSlab(const RoughSlabPhotonTracerOptions& o
     }
     int hits = 1;
     bool done = false;
+    Eigen::Vector2d lateral = Eigen::Vector2d::Zero();  // Across a slab of unit thickness.
     while (!done) {
       if (hits >= options.max_interactions) {
         ++capped;
         break;
       }
       ++hits;
+      lateral += d.head<2>() / std::abs(d.z());  // One crossing of the slab.
       Eigen::Vector3d out;
       if (d.z() < 0) {
         // Bottom face from inside: local frame = global frame (incoming side +z).
@@ -273,7 +278,15 @@ RoughSlabPhotonTracerResult TraceRoughSlab(const RoughSlabPhotonTracerOptions& o
           ++result.transmitted_by_hits[hits];
           const int col = std::min(options.num_bins - 1, static_cast<int>((out.x() + 1) / h));
           const int row = std::min(options.num_bins - 1, static_cast<int>((out.y() + 1) / h));
-          ++result.transmitted_counts[static_cast<size_t>(row) * options.num_bins + col];
+          const size_t cell = static_cast<size_t>(row) * options.num_bins + col;
+          ++result.transmitted_counts[cell];
+          if (hits == 2) {
+            ++result.transmitted_once_counts[cell];
+            result.once_offset_x[cell] += lateral.x();
+            result.once_offset_y[cell] += lateral.y();
+          } else {
+            result.multiple_offsets.push_back(lateral.cast<float>());
+          }
           done = true;
         } else {
           d = out;

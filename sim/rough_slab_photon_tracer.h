@@ -68,6 +68,19 @@ struct RoughSlabPhotonTracerResult {
   // Transmitted photon counts, cell (row, col) at row * num_bins + col, o.x along col and o.y
   // along row: cell centre (-1 + (col + 0.5) h, -1 + (row + 0.5) h), h = 2 / num_bins.
   std::vector<int64_t> transmitted_counts;
+  // Lateral displacement of the transmitted photons between where they entered the incident-side
+  // face and where they left the far face, for a slab of unit thickness (x, y of the frame),
+  // summed per cell, separately for the photons that crossed the slab once (2 interface hits)
+  // and for those that crossed it 3, 5, ... times (internal reflections): a mean times a slab's
+  // thickness is where that part of the light leaving in the cell's direction entered. The two
+  // parts lie far apart (one crossing at ~tan 28 degrees, several at grazing internal angles),
+  // so one mean would put all the light where none enters. The slab's BTDF itself treats it as
+  // infinitely thin (see above).
+  std::vector<int64_t> transmitted_once_counts;
+  std::vector<double> once_offset_x, once_offset_y;
+  // Every photon that crossed several times: its offset (a few % of the transmitted photons,
+  // spread over tens of thicknesses by grazing internal bounces, so one mean would not do).
+  std::vector<Eigen::Vector2f> multiple_offsets;
   // Transmitted counts by number of interface hits (index = hits, 2 = straight through).
   std::vector<int64_t> transmitted_by_hits;
 

@@ -84,6 +84,50 @@ TEST(RoughSlabPhotonTracer, NearlySmoothSlabIsTheFresnelSeries) {
 }
 
 
+// The lateral offsets through a flat slab of unit thickness (issue #23 section 5): once through,
+// tan of the refraction angle along the propagation; after k internal reflection pairs, (2k + 1)
+// times that; the share that crosses once is 1 / sum F^(2k) = 1 - F^2 of the transmitted light.
+TEST(RoughSlabPhotonTracer, FlatSlabOffsetsAreTheRefractedRayCrossings) {
+  constexpr double kEta = 1.5;
+  constexpr int64_t kPhotons = 400000;
+  for (double theta_deg : {20.0, 60.0}) {
+    RoughSlabPhotonTracerOptions options;
+    options.eta = kEta;
+    options.alpha_top = options.alpha_bottom = 0.001;
+    options.wi = SphericalDirection(Deg(theta_deg), 0.0);
+    options.num_photons = kPhotons;
+    options.seed = 5;
+    const RoughSlabPhotonTracerResult r = TraceRoughSlab(options);
+    const double sin_t = std::sin(Deg(theta_deg)) / kEta;
+    const double tan_t = sin_t / std::sqrt(1 - sin_t * sin_t);
+    int64_t once = 0;
+    double sum_x = 0, sum_y = 0;
+    for (size_t c = 0; c < r.transmitted_counts.size(); ++c) {
+      once += r.transmitted_once_counts[c];
+      sum_x += r.once_offset_x[c];
+      sum_y += r.once_offset_y[c];
+    }
+    const int64_t transmitted = static_cast<int64_t>(std::llround(r.transmitted * kPhotons));
+    const double f = FresnelDielectric(options.wi.z(), kEta);
+    std::printf("theta_i=%2.0f: once offset (%.4f, %.4f) for (-%.4f, 0), share once %.4f for %.4f, %zu several\n",
+                theta_deg, sum_x / once, sum_y / once, tan_t, static_cast<double>(once) / transmitted, 1 - f * f,
+                r.multiple_offsets.size());
+    // wi points to the light along +x: the photon travels towards -x.
+    EXPECT_NEAR(sum_x / once, -tan_t, 2e-3);
+    EXPECT_NEAR(sum_y / once, 0, 2e-3);
+    EXPECT_NEAR(static_cast<double>(once) / transmitted, 1 - f * f, 5e-3);
+    // 3, 5, 7, ... crossings; GGX's long tail tilts a few facets even at alpha 0.001, so 90 %.
+    ASSERT_FALSE(r.multiple_offsets.empty());
+    int odd = 0;
+    for (const Eigen::Vector2f& offset : r.multiple_offsets) {
+      const double crossings = -offset.x() / tan_t;
+      odd += crossings > 2.5 && std::abs(crossings - (2 * std::round((crossings - 1) / 2) + 1)) < 0.05;
+    }
+    EXPECT_GT(odd, 0.9 * r.multiple_offsets.size());
+  }
+}
+
+
 constexpr double kEta = 1.5;
 constexpr double kAlpha = 0.3;
 constexpr int64_t kLobePhotons = 4000000;

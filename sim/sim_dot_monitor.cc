@@ -423,14 +423,30 @@ double SimDotMonitor::ScatteredRadiance(const ScatterComponent& c, const std::ve
   // the screen emits towards +z of the sample frame, so cos_e = |i.z| = cos_i for a parallel screen.
   const SlabSample& sample = *sample_;
   const Eigen::Vector3d emit_normal = -(monitor_.sample_from_monitor.rotation * Eigen::Vector3d::UnitZ());
+  const SlabMaterial& m = sample.region(c.region).material;
+  const bool thick = sample.options().thickness_m > 0 && sample.table(c.region) != nullptr;
   double sum = 0;
   for (const PointSource& q : sources) {
-    const Eigen::Vector3d d = q.position_in_sample - c.x_in_sample;
-    const double r2 = d.squaredNorm();
-    const double r = std::sqrt(r2);
-    const Eigen::Vector3d i = d / r;
-    const double cos_i = std::abs(i.z()), cos_e = std::abs(emit_normal.dot(i));
-    sum += sample.Transmission(c.region, i, c.view) * q.radiance_area * cos_e * cos_i / r2;
+    // A slab of finite thickness: the light that crossed it once and, spread over several
+    // places, the light that crossed it several times enter the monitor-side face where the
+    // traced paths put them (SlabSample::LightEntryPoint), each found from the direction seen
+    // from x and refined once with the direction seen from there; each part carries its share of
+    // the cell's BTDF. The diffuse term enters with the first part.
+    for (int part = 0; part < (thick ? SlabSample::kEntryParts : 1); ++part) {
+      Eigen::Vector3d entry = c.x_in_sample;
+      double share = 1;
+      for (int pass = 0; pass < 2 && thick; ++pass) {
+        entry = sample.LightEntryPoint(c.region, c.x_in_sample, (q.position_in_sample - entry).normalized(), c.view,
+                                       part, &share);
+      }
+      const Eigen::Vector3d d = q.position_in_sample - entry;
+      const double r2 = d.squaredNorm();
+      const double r = std::sqrt(r2);
+      const Eigen::Vector3d i = d / r;
+      const double cos_i = std::abs(i.z()), cos_e = std::abs(emit_normal.dot(i));
+      const double transmission = (part == 0 ? m.rho_d : 0.0) + share * m.k_s * sample.Btdf(c.region, i, c.view);
+      sum += transmission * q.radiance_area * cos_e * cos_i / r2;
+    }
   }
   return sum;
 }

@@ -50,6 +50,7 @@ Status SlabSampleOptions::Check() const {
   if (photons_per_region < 1000) return err("photons_per_region", "must be >= 1000");
   if (table_bins < 4 || table_bins > 1024) return err("table_bins", "must be in [4, 1024]");
   if (max_interactions < 2) return err("max_interactions", "must be >= 2");
+  if (!(thickness_m >= 0 && thickness_m <= 0.05)) return err("thickness_m", "must be in [0, 0.05] m");
   if (num_threads < 1 || num_threads > kMaxThreads) {
     return err("num_threads", "must be in 1.." + std::to_string(kMaxThreads) + ", got " + std::to_string(num_threads));
   }
@@ -178,6 +179,37 @@ Status SlabSample::Create(const SlabSampleOptions& options_in, const Eigen::Vect
         table->std_error[row * r.num_bins + col] = static_cast<float>(r.BtdfStdError(row, col));
       }
     }
+    // Offsets per unit thickness (slab_sample.h).
+    const size_t cells = r.transmitted_counts.size();
+    Eigen::Vector2d sum_once = Eigen::Vector2d::Zero();
+    int64_t n_once = 0;
+    for (size_t c = 0; c < cells; ++c) {
+      sum_once += Eigen::Vector2d(r.once_offset_x[c], r.once_offset_y[c]);
+      n_once += r.transmitted_once_counts[c];
+    }
+    const int64_t n_multiple = static_cast<int64_t>(r.multiple_offsets.size());
+    const Eigen::Vector2f mean_once =
+        n_once > 0 ? Eigen::Vector2f((sum_once / static_cast<double>(n_once)).cast<float>()) : Eigen::Vector2f::Zero();
+    table->offset_once.assign(cells, mean_once);
+    table->share_once.assign(cells, n_once + n_multiple > 0 ? static_cast<float>(n_once) / (n_once + n_multiple) : 1);
+    for (size_t c = 0; c < cells; ++c) {
+      const int64_t once = r.transmitted_once_counts[c], multiple = r.transmitted_counts[c] - once;
+      if (once > 0) {
+        table->offset_once[c] = Eigen::Vector2f(static_cast<float>(r.once_offset_x[c] / once),
+                                                static_cast<float>(r.once_offset_y[c] / once));
+      }
+      if (once + multiple > 0) table->share_once[c] = static_cast<float>(once) / (once + multiple);
+    }
+    std::vector<Eigen::Vector2f> multiple = r.multiple_offsets;
+    std::sort(multiple.begin(), multiple.end(),
+              [](const Eigen::Vector2f& a, const Eigen::Vector2f& b) { return a.squaredNorm() < b.squaredNorm(); });
+    for (int part = 0; part < SlabBtdfTable::kMultipleParts; ++part) {
+      const size_t lo = multiple.size() * part / SlabBtdfTable::kMultipleParts;
+      const size_t hi = multiple.size() * (part + 1) / SlabBtdfTable::kMultipleParts;
+      Eigen::Vector2f sum = Eigen::Vector2f::Zero();
+      for (size_t j = lo; j < hi; ++j) sum += multiple[j];
+      table->offset_multiple[part] = hi > lo ? Eigen::Vector2f(sum / static_cast<float>(hi - lo)) : 3 * mean_once;
+    }
     table->transmitted = r.transmitted;
     table->reflected = r.reflected;
     table->masked = r.masked;
@@ -243,6 +275,27 @@ double SlabSample::Btdf(int idx, const Eigen::Vector3d& i_sample, const Eigen::V
   if (!t) return 0.0;
   const Eigen::Vector3d& o_c = view_directions_[idx];
   return t->Eval(Eigen::Vector3d(i_sample.x() + o_sample.x() - o_c.x(), i_sample.y() + o_sample.y() - o_c.y(), i_sample.z()));
+}
+
+Eigen::Vector3d SlabSample::LightEntryPoint(int idx, const Eigen::Vector3d& x, const Eigen::Vector3d& i_sample,
+                                            const Eigen::Vector3d& o_sample, int part, double* share) const {
+  const double t = options_.thickness_m;
+  const SlabBtdfTable* table = tables_[idx].get();
+  if (!(t > 0) || !table) {
+    *share = part == 0 ? 1 : 0;
+    return x;
+  }
+  // The cell the BTDF lookup reads (the same view shift as Btdf), nearest, not interpolated: a
+  // lobe's edge cells must not mix with the empty ones.
+  const Eigen::Vector3d& o_c = view_directions_[idx];
+  const double h = 2.0 / table->bins;
+  const int col = std::clamp(static_cast<int>((i_sample.x() + o_sample.x() - o_c.x() + 1) / h), 0, table->bins - 1);
+  const int row = std::clamp(static_cast<int>((i_sample.y() + o_sample.y() - o_c.y() + 1) / h), 0, table->bins - 1);
+  const size_t cell = static_cast<size_t>(row) * table->bins + col;
+  const double once = table->share_once[cell];
+  *share = part == 0 ? once : (1 - once) / SlabBtdfTable::kMultipleParts;
+  const Eigen::Vector2f offset = part == 0 ? table->offset_once[cell] : table->offset_multiple[part - 1];
+  return Eigen::Vector3d(x.x() + t * offset.x(), x.y() + t * offset.y(), x.z() - t);
 }
 
 double SlabSample::Transmission(int idx, const Eigen::Vector3d& i_sample, const Eigen::Vector3d& o_sample) const {

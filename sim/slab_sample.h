@@ -76,6 +76,10 @@ struct SlabSampleOptions {
   // Empty = DefaultSlabRegions(min_m, max_m).
   std::vector<SlabRegion> regions;
   int64_t photons_per_region = 400000;  // Photons traced per rough region.
+  // Slab thickness [m]: the camera-side face is z = 0, the monitor-side face z = -thickness. The
+  // BTDF tables are the infinitely thin slab's; the thickness moves where each dot's light
+  // enters (SlabSample::LightEntryPoint). Smooth regions' direct view is not displaced.
+  double thickness_m = 0;
   int table_bins = 64;                  // N x N cells of the orthographic exit-direction table.
   int max_interactions = 64;
   int num_threads = 2;  // Regions traced in parallel (each has its own seed: deterministic).
@@ -100,6 +104,16 @@ struct SlabBtdfTable {
   // h = 2 / bins.
   std::vector<float> rho;
   std::vector<float> std_error;  // Poisson standard error of each cell [1/sr].
+  // Where the light of a cell's direction entered the monitor-side face, relative to where it
+  // leaves the camera-side face, per unit slab thickness. The light that crossed the slab once:
+  // its cell mean offset (the table's mean where the cell has none) and its share of the cell's
+  // light. The rest (internal reflections, a few %) spreads over tens of thicknesses: it enters
+  // at kMultipleParts offsets, the means of equal-count slices of all its photons sorted by the
+  // offset's length, each with an equal part of the rest of the cell's light.
+  static constexpr int kMultipleParts = 4;
+  std::vector<Eigen::Vector2f> offset_once;
+  std::vector<float> share_once;
+  Eigen::Vector2f offset_multiple[kMultipleParts];
   double transmitted = 0, reflected = 0, masked = 0, capped = 0;  // Tracer fractions.
   int64_t photons = 0;
   uint64_t seed = 0;
@@ -131,6 +145,15 @@ class SlabSample {
   // rho(x, i, o) [1/sr] of region idx at its traced o, without rho_d and k_s; i in the sample
   // frame, unit, pointing from the sample to the light (i.z < 0). 0 for smooth regions.
   double Btdf(int idx, const Eigen::Vector3d& i_sample) const;
+  // Where part `part` of the light that leaves the camera-side face at x (z = 0) towards o
+  // entered the monitor-side face, coming from direction i (sample frame, i.z < 0), and that
+  // part's share of the (i, o) cell's light: part 0 crossed the slab once, parts 1..
+  // kMultipleParts several times (SlabBtdfTable). x plus the thickness times the part's offset,
+  // at z = -thickness. x and share 1 for part 0 (0 for the rest) of smooth regions or a zero
+  // thickness.
+  static constexpr int kEntryParts = 1 + SlabBtdfTable::kMultipleParts;
+  Eigen::Vector3d LightEntryPoint(int idx, const Eigen::Vector3d& x, const Eigen::Vector3d& i_sample,
+                                  const Eigen::Vector3d& o_sample, int part, double* share) const;
   // R = rho_d + k_s rho (Dai Eq. 13) [1/sr].
   double Transmission(int idx, const Eigen::Vector3d& i_sample) const;
   // The same at view direction o (sample frame, unit, towards the camera): the table looked up

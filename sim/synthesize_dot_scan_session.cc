@@ -146,6 +146,7 @@ Status WriteDotScanTruth(const SyntheticDotScanOptions& options, const SlabSampl
   j["tables"] = {{"file", table_channels.empty() ? "" : "ground_truth/btdf_tables.exr"},
                  {"bins", bins},
                  {"photons_per_region", so.photons_per_region},
+                 {"slab_thickness_m", so.thickness_m},
                  {"max_interactions", so.max_interactions},
                  {"seed", so.seed},
                  {"tracing_s", sample.tracing_seconds()}};
@@ -213,6 +214,7 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
   rig.sample.region_max_m = so.max_m;
   rig.sample.pixel_pitch_m = options.truth_pitch_m;
   rig.sample.glass_ior = so.regions.front().material.eta;
+  rig.sample.glass_thickness_m = so.thickness_m;
   DotScanSessionOptions session = options.session;
   session.sync = SyncForSensor(session.sync, options.rig.sensor);
   session.monitor_width_px = options.rig.monitor_width_px;
