@@ -206,6 +206,7 @@ Status RunSynchronizedPlan(const std::vector<PlannedFrame>& plan, const Exposure
     templ.light.projector_pattern = p.pattern;
     templ.light.dot_px = p.dot_px;
     templ.light.laser_on = p.laser_on;
+    templ.validation = p.validation;
     THINSLAB_RETURN_IF_ERROR(set_exposure(p, &templ.exposure_time_us));
     bool on_disk = false;
     THINSLAB_RETURN_IF_ERROR(writer->ClaimStep(templ, &on_disk));

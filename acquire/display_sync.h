@@ -86,6 +86,7 @@ struct PlannedFrame {
   // The display is in the light path of this frame: its exposure is rounded to whole refresh
   // periods (ExposureBracketOptions::refresh_period_s). False for frames lit by the laser alone.
   bool refresh_locked = true;
+  bool validation = false;  // FrameRecord::validation: not for fitting.
 };
 
 // Runs `plan` in order: changes the sample, the displayed pattern and the laser (if `laser` is

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "acquire/dot_scan_session.h"
 
+#include <algorithm>
 #include <sstream>
 
 #include "drivers/pattern_id.h"
@@ -50,6 +51,9 @@ bool DotScanSessionOptions::Check(std::string* error) const {
   } else if (sample_state != "contaminated" && sample_state != "clean" && sample_state != "none") {
     msg << "DotScanSessionOptions::sample_state = '" << sample_state
         << "'. Violated constraint: contaminated, clean or none";
+  } else if (std::any_of(validation_dots_px.begin(), validation_dots_px.end(),
+                         [](const Eigen::Vector2d& d) { return !d.allFinite() || d.minCoeff() < 0; })) {
+    msg << "DotScanSessionOptions::validation_dots_px: every dot must be finite and >= 0 monitor px";
   } else if (!bracket.Check(error) || !sync.Check(error)) {
     return false;
   } else {
@@ -89,7 +93,31 @@ std::vector<PlannedFrame> PlanDotScan(const DotScanSessionOptions& options, doub
     const std::string pattern = DotPatternId(dot.x(), dot.y());
     for (double t : exposures) plan.push_back({"dot", options.sample_state, pattern, t, dot});
   }
+  for (const Eigen::Vector2d& dot : options.validation_dots_px) {
+    const std::string pattern = DotPatternId(dot.x(), dot.y());
+    for (double t : exposures) {
+      PlannedFrame frame{"dot", options.sample_state, pattern, t, dot};
+      frame.validation = true;
+      plan.push_back(frame);
+    }
+  }
   return plan;
+}
+
+std::vector<Eigen::Vector2d> DotScanValidationDots(const DotScanSessionOptions& options, int count) {
+  const std::vector<Eigen::Vector2d> grid = DotScanGrid(options);
+  std::vector<Eigen::Vector2d> dots;
+  const int cells_x = options.grid_nx - 1, cells_y = options.grid_ny - 1, cells = cells_x * cells_y;
+  if (count <= 0 || cells <= 0) return dots;
+  for (int k = 0; k < std::min(count, cells); ++k) {
+    // Cells k * cells / count + half a stride, so the dots spread over the grid.
+    const int cell = static_cast<int>((static_cast<int64_t>(2 * k + 1) * cells) / (2 * std::min(count, cells)));
+    const int cx = cell % cells_x, cy = cell / cells_x;
+    const Eigen::Vector2d& a = grid[static_cast<size_t>(cy) * options.grid_nx + cx];
+    const Eigen::Vector2d& b = grid[static_cast<size_t>(cy + 1) * options.grid_nx + cx + 1];
+    dots.push_back(0.5 * (a + b));
+  }
+  return dots;
 }
 
 Status RunDotScanSession(const DotScanSessionOptions& options, Camera* camera, Projector* monitor,

@@ -40,6 +40,9 @@ struct DotScanSessionOptions {
   bool capture_all_dots = true;
   bool capture_dark = true;
   std::string sample_state = "contaminated";  // State of the sample during the dot frames.
+  // Validation dots (monitor px, any position): captured after the grid like its dots, marked
+  // FrameRecord::validation (not fitted; `fit dmf` reports how well it predicts them).
+  std::vector<Eigen::Vector2d> validation_dots_px;
   DisplaySyncOptions sync;
 
   bool Check(std::string* error) const;
@@ -49,6 +52,9 @@ struct DotScanSessionOptions {
 std::vector<Eigen::Vector2d> DotScanGrid(const DotScanSessionOptions& options);
 // The "dots:..." id of the whole grid.
 std::string DotScanGridPattern(const DotScanSessionOptions& options);
+// `count` validation dots between the grid's dots: the centres of grid cells (between four
+// dots, where no fitted dot lies) spread evenly over the grid in row-major order.
+std::vector<Eigen::Vector2d> DotScanValidationDots(const DotScanSessionOptions& options, int count);
 // The frames the scan takes, in order, for a display of the given refresh period.
 std::vector<PlannedFrame> PlanDotScan(const DotScanSessionOptions& options, double refresh_period_s);
 

@@ -75,7 +75,7 @@ std::string Sanitize(const std::string& s) {
 std::vector<Group> GroupFrames(const Session& session, const CameraInfo& camera, const std::string& kind_filter) {
   std::map<std::string, Group> groups;
   for (const FrameRecord& f : session.frames) {
-    if (f.status == FrameStatus::kFailed || f.camera_id != camera.id || f.kind == "dark") continue;
+    if (f.status == FrameStatus::kFailed || f.validation || f.camera_id != camera.id || f.kind == "dark") continue;
     std::ostringstream name;
     name << Sanitize(f.kind);
     if (f.sample_state != "none") name << "_" << Sanitize(f.sample_state);

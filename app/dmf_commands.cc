@@ -8,6 +8,7 @@
 //   summary.json/.txt timings per stage, status counts, peak memory; options.ini
 //   comparison.json  per-region accuracy when the capture has ground_truth/truth.json (sim)
 //   ladder.exr       with --ladder: the issue #8 rung chosen per point and each rung's error
+#include <cstdio>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -374,6 +375,10 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     accuracy = CompareDmfWithTruth(slices, maps, truth);
     THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "comparison.json"), DmfComparisonJson(accuracy)));
   }
+  // Issue #23 section 4: the capture's validation dots, predicted by the tabulated fit.
+  constexpr double kValidationLobeFraction = 0.1;
+  const std::vector<DmfValidationError> validation =
+      EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction);
   std::map<std::string, int> counts;
   for (const DmfPointFit& f : maps.fits) ++counts[DmfStatusName(f.status)];
   const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - write_start).count();
@@ -405,6 +410,20 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["exposure_check"] = ExposureCheckJson(processing.exposure_check, false);
   j["dot_geometry_source"] = processing.dot_geometry_source;
   j["noise"] = processing.noise.ToJson();
+  {
+    nlohmann::json v = {{"dots", slices.validation.num_dots()}, {"lobe_fraction", kValidationLobeFraction}};
+    nlohmann::json regions = nlohmann::json::array();
+    for (const DmfValidationError& e : validation) {
+      if (slices.validation.num_dots() == 0) break;
+      regions.push_back({{"region", e.region},
+                         {"points", e.points},
+                         {"pairs", e.pairs},
+                         {"relative_rms", e.relative_rms},
+                         {"noise_relative_rms", e.noise_relative_rms}});
+    }
+    v["regions"] = regions;
+    j["validation"] = v;
+  }
   j["calibration"] = CalibrationSummaryJson(processing.calibration);
   j["capture"] = CaptureSummaryJson(processing.capture);
   j["slice_memory_bytes"] = processing.slice_bytes;
@@ -458,6 +477,17 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
         << (run.ladder_apply ? std::to_string(ladder.replaced) + " points' maps hold rung 3 or 4"
                              : std::string("maps hold rung 5 everywhere (--ladder-apply false)"))
         << "\n";
+  }
+  if (slices.validation.num_dots() > 0) {
+    txt << "validation dots: " << slices.validation.num_dots()
+        << " (not fitted); in-lobe relative RMS of the prediction (noise alone):\n";
+    for (const DmfValidationError& e : validation) {
+      if (e.pairs == 0) continue;
+      char line[200];
+      std::snprintf(line, sizeof(line), "  %s: %.3f (%.3f) over %d points, %d pairs\n", e.region.c_str(),
+                    e.relative_rms, e.noise_relative_rms, e.points, e.pairs);
+      txt << line;
+    }
   }
   if (has_truth) {
     txt << "against ground truth (medians per region; NDF L2 on one-sided regions, held-out with --hold-out):\n";

@@ -107,6 +107,10 @@ int RunInfo(int argc, char** argv) {
   }
   clipping.Warn(std::cout);
   std::cout << "frames decoded: " << decoded << "\n";
+  const auto validation = std::count_if(session.frames.begin(), session.frames.end(), [](const FrameRecord& f) {
+    return f.validation && f.status != FrameStatus::kFailed;
+  });
+  if (validation > 0) std::cout << "validation frames (not fitted): " << validation << "\n";
   std::cout << "valid: yes\n";
   return 0;
 }

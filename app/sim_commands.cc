@@ -161,6 +161,8 @@ int RunSimDotScan(int argc, char** argv) {
   parser.AddDouble("dot-radius-px", &options.rig.dot_radius_px, "radius of a displayed dot [monitor px]");
   parser.AddInt("photons-k", &photons_k, "Monte Carlo photons per rough region, thousands");
   parser.AddInt("table-bins", &options.sample.table_bins, "N x N cells of each region's BTDF table");
+  parser.AddInt("validation-dots", &options.validation_dots,
+                "dots between the grid's captured as validation frames (not fitted; fit dmf reports them)");
   double glass_thickness_mm = 0;
   parser.AddDouble("glass-thickness-mm", &glass_thickness_mm,
                    "slab thickness [mm]: moves where each dot's light enters (traced mean path offsets); 0 = thin");

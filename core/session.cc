@@ -23,7 +23,18 @@ std::vector<const FrameRecord*> Session::UsableFrames(const std::string& frame_k
                                                       const std::string& sample_state) const {
   std::vector<const FrameRecord*> out;
   for (const auto& frame : frames) {
-    if (frame.kind != frame_kind || frame.status == FrameStatus::kFailed) continue;
+    if (frame.kind != frame_kind || frame.status == FrameStatus::kFailed || frame.validation) continue;
+    if (!sample_state.empty() && frame.sample_state != sample_state) continue;
+    out.push_back(&frame);
+  }
+  return out;
+}
+
+std::vector<const FrameRecord*> Session::ValidationFrames(const std::string& frame_kind,
+                                                          const std::string& sample_state) const {
+  std::vector<const FrameRecord*> out;
+  for (const auto& frame : frames) {
+    if (frame.kind != frame_kind || frame.status == FrameStatus::kFailed || !frame.validation) continue;
     if (!sample_state.empty() && frame.sample_state != sample_state) continue;
     out.push_back(&frame);
   }

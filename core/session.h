@@ -17,7 +17,7 @@ namespace thinslab {
 
 constexpr int kSessionFormatMajor = 1;
 // 1.1: stream_statistics, acquisition; 1.2: camera frame ids; 1.3: linear frames, noise fields;
-// 1.4: rig.monitor.dot_radius_px.
+// 1.4: rig.monitor.dot_radius_px, frames[k].validation.
 constexpr int kSessionFormatMinor = 4;
 constexpr char kSessionManifestName[] = "session.json";
 // Largest board distance (sample to board/screen) any rig, fit or simulation accepts: a shadow
@@ -129,6 +129,9 @@ struct FrameRecord {
   // Optional per-pixel variance of the frame's values (an EXR of the frame's size, the frame's
   // units squared, before dividing by the exposure); "" = none. Format 1.3.
   std::string variance_file;
+  // A validation frame (format 1.4): a measurement outside the fitting set (any dot position or
+  // light state), never fitted; fits that know its kind report how well they predict it.
+  bool validation = false;
   double gain_db = 0;
   LightState light;
   std::string timestamp_utc;  // ISO 8601.
@@ -175,9 +178,13 @@ struct Session {
   AcquisitionInfo acquisition;  // Present only in captures written by `thinslab acquire`.
 
   const CameraInfo* FindCamera(const std::string& id) const;
-  // Frames of one kind (and sample state, if non-empty) with status ok or retried.
+  // Frames of one kind (and sample state, if non-empty) with status ok or retried, validation
+  // frames left out: what the fits and calibrations use.
   std::vector<const FrameRecord*> UsableFrames(const std::string& kind,
                                                const std::string& sample_state = "") const;
+  // The validation frames among them (FrameRecord::validation).
+  std::vector<const FrameRecord*> ValidationFrames(const std::string& kind,
+                                                   const std::string& sample_state = "") const;
 };
 
 }  // namespace thinslab

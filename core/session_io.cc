@@ -578,6 +578,7 @@ Status ManifestParser::ParseFrame(const Json& j, const std::string& path,
                                             OneOf(FrameStatusNames()) + ")");
   }
   THINSLAB_RETURN_IF_ERROR(String(j, path, "error", Need::kOptional, &frame->error));
+  THINSLAB_RETURN_IF_ERROR(Bool(j, path, "validation", Need::kOptional, &frame->validation));
   return Status::Ok();
 }
 
@@ -699,6 +700,7 @@ OrderedJson FrameToJson(const FrameRecord& f) {
   if (f.camera_timestamp_ns.has_value()) fj["camera_timestamp_ns"] = *f.camera_timestamp_ns;
   fj["status"] = FrameStatusName(f.status);
   fj["error"] = f.error;
+  if (f.validation) fj["validation"] = true;
   return fj;
 }
 

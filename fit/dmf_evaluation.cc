@@ -153,4 +153,62 @@ std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
   return j.dump(2) + "\n";
 }
 
+std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
+                                                       const std::vector<DmfTruthRegion>& regions,
+                                                       double lobe_fraction) {
+  const DmfValidationDots& validation = slices.validation;
+  const int nv = validation.num_dots();
+  std::vector<DmfValidationError> out(1 + regions.size());
+  out[0].region = "all";
+  for (size_t r = 0; r < regions.size(); ++r) out[1 + r].region = regions[r].name;
+  if (nv == 0) return out;
+  const DmfNdfGrid grid(maps.ndf_resolution);
+  std::vector<double> num(out.size(), 0), den(out.size(), 0), noise(out.size(), 0);
+  for (int p = 0; p < slices.num_points(); ++p) {
+    const DmfPointFit& fit = maps.fits[p];
+    if ((fit.status != DmfStatus::kOk && fit.status != DmfStatus::kInterpolated) || fit.log_ndf.empty()) continue;
+    const Eigen::Vector3d x = slices.PointPosition(p);
+    const Eigen::Vector3d entry = slices.LightEntryPoint(p);
+    const Eigen::Vector3d o = SampleToOptical((slices.camera_centre - x).normalized());
+    const size_t base = static_cast<size_t>(p) * nv;
+    double peak = 0;
+    for (int v = 0; v < nv; ++v) peak = std::max(peak, validation.value[base + v] - fit.rho_d);
+    if (!(peak > 0)) continue;
+    double point_num = 0, point_den = 0, point_noise = 0;
+    int point_pairs = 0;
+    for (int v = 0; v < nv; ++v) {
+      const double above = validation.value[base + v] - fit.rho_d;
+      if (above < lobe_fraction * peak) continue;
+      const Eigen::Vector3d i = SampleToOptical((validation.positions[v] - entry).normalized());
+      const double d = PredictDualMicrofacet(fit, grid, maps.eta, i, o) - validation.value[base + v];
+      point_num += d * d;
+      point_den += above * above;
+      point_noise += Sqr(static_cast<double>(validation.sigma[base + v]));
+      ++point_pairs;
+    }
+    auto add = [&](size_t k) {
+      ++out[k].points;
+      out[k].pairs += point_pairs;
+      num[k] += point_num;
+      den[k] += point_den;
+      noise[k] += point_noise;
+    };
+    add(0);
+    for (size_t r = 0; r < regions.size(); ++r) {
+      const DmfTruthRegion& region = regions[r];
+      const double margin = slices.pitch_m;
+      if (x.x() >= region.min_m.x() + margin && x.x() <= region.max_m.x() - margin &&
+          x.y() >= region.min_m.y() + margin && x.y() <= region.max_m.y() - margin) {
+        add(1 + r);
+      }
+    }
+  }
+  for (size_t k = 0; k < out.size(); ++k) {
+    if (!(den[k] > 0)) continue;
+    out[k].relative_rms = std::sqrt(num[k] / den[k]);
+    out[k].noise_relative_rms = std::sqrt(noise[k] / den[k]);
+  }
+  return out;
+}
+
 }  // namespace thinslab

@@ -61,4 +61,21 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
                                                    double held_out_tolerance = 0.5);
 std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy);
 
+// How well the fitted maps predict the capture's validation dots (DmfValidationDots; issue #23
+// section 4), pooled over the (point, validation dot) pairs inside each point's lobe (measured
+// R - rho_d at or above `lobe_fraction` of the point's largest over the validation dots), over
+// the points with a fitted model (status ok or interpolated):
+//   relative_rms = sqrt(sum (predicted - measured)^2 / sum (measured - rho_d)^2),
+// and beside it what noise alone would give, sqrt(sum sigma^2 / sum (measured - rho_d)^2).
+struct DmfValidationError {
+  std::string region;  // "all", or a ground-truth region's name.
+  int points = 0, pairs = 0;
+  double relative_rms = -1, noise_relative_rms = -1;  // -1: no pair.
+};
+// "all" first, then one entry per region of `regions` (ground truth of a simulated capture; may
+// be empty), points at least one grid pitch inside it as CompareDmfWithTruth.
+std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
+                                                       const std::vector<DmfTruthRegion>& regions,
+                                                       double lobe_fraction = 0.1);
+
 }  // namespace thinslab

@@ -18,6 +18,15 @@
 
 namespace thinslab {
 
+// Eq. 12 measurements of the capture's validation dots (FrameRecord::validation: any dot
+// position, never fitted), point-major as DmfSliceSet::value (value[p * num_dots() + v]).
+struct DmfValidationDots {
+  std::vector<Eigen::Vector2d> dot_px;          // Displayed positions [monitor px].
+  std::vector<Eigen::Vector3d> positions;       // p_v from the fitted monitor geometry [m].
+  std::vector<float> value, sigma;              // R [1/sr] and its standard deviation.
+  int num_dots() const { return static_cast<int>(positions.size()); }
+};
+
 // Eq. 12 measurements of a whole sample grid, in the sample frame of docs/conventions.md
 // (monitor at z = -d, camera on +z). Point p = (col, row) sits at
 // grid_min_m + ((col + 0.5), (row + 0.5)) * pitch_m on z = 0.
@@ -36,6 +45,7 @@ struct DmfSliceSet {
   std::vector<float> sigma;   // Its standard deviation, same layout (empty: unknown).
   std::vector<uint8_t> train; // Per dot: 1 fitted, 0 held out.
   std::vector<uint8_t> point_status;  // Per point: DmfStatus from processing (kOk to fit).
+  DmfValidationDots validation;       // Empty when the capture has no validation dot frames.
 
   int num_points() const { return width * height; }
   int num_dots() const { return static_cast<int>(dot_positions.size()); }

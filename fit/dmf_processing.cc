@@ -219,6 +219,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     THINSLAB_RETURN_IF_ERROR(
         CheckCalibratedDots(calibrated, displayed).WithContext(report->calibration.rig_file + ": monitor"));
     geometry.dots = calibrated.dots;
+    geometry.sample_from_monitor = calibrated.sample_from_monitor;
     geometry.rms_residual_m = calibrated.rms_residual_m;
     geometry.distance_error_m = calibrated.distance_error_m;
     geometry.distance_error_sigma_m = calibrated.distance_error_sigma_m;
@@ -329,34 +330,67 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   std::vector<int> saturated_dots(np, 0);
   int q = 0;
   const int check_stride = std::max(1, nd / kDotsExposureChecked);
-  for (const auto& [yx, frames] : by_dot) {
+  // One dot's bracket: merged, rectified, Eq. 12 with L_q and the dot's position; `write` gets
+  // each point's R, its sigma and whether every exposure saturated there.
+  auto measure = [&](const std::vector<const FrameRecord*>& frames, const Eigen::Vector3d& position, double l_q,
+                     const std::string& name, bool check, const auto& write) -> Status {
     HdrImage hdr;
     SessionMergeInfo info;
-    const bool check = q % check_stride == 0;
     THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, darks, response,
                                                  HdrMergeOptions(), 1.0, report->noise, &hdr, &info,
                                                  check ? ExposureCheckMode::kCheck : ExposureCheckMode::kNone)
-                                 .WithContext(DotName(displayed[q])));
+                                 .WithContext(name));
     if (check) CombineExposureChecks(info.exposure_check, &report->exposure_check);  // One bracket for all dots.
     report->num_frames += info.num_frames;
     report->num_exposures = std::max(report->num_exposures, info.num_exposures);
     const Image radiance = rectifier.Rectify(hdr.radiance);
     const Image variance = rectifier.Rectify(hdr.variance);
     const Image saturated = rectifier.RectifyAny(hdr.all_saturated);
-    const DotRecord& dot = geometry.dots[q];
-    const double l_q = dot.saturated || !dot.measured() ? median_radiance : dot.radiance_dn_per_us;
     for (int p = 0; p < np; ++p) {
       const int x = p % grid.width_px, y = p / grid.width_px;
-      const Eigen::Vector3d to_dot = dot.position_in_sample_m - slices->LightEntryPoint(p);
+      const Eigen::Vector3d to_dot = position - slices->LightEntryPoint(p);
       const double dist2 = to_dot.squaredNorm();
       const double cos2 = Sqr(to_dot.z()) / dist2;  // cos_e (z . i_q): monitor parallel to the sample.
       const double scale = dist2 / (l_q * dot_area * cos2);
-      const size_t k = static_cast<size_t>(p) * nd + q;
-      slices->value[k] = static_cast<float>(std::max(0.0f, radiance.at(x, y)) * scale);
-      slices->sigma[k] = static_cast<float>(std::sqrt(std::max(0.0f, variance.at(x, y))) * scale);
-      if (saturated.at(x, y) > 0) ++saturated_dots[p];
+      write(p, std::max(0.0f, radiance.at(x, y)) * scale, std::sqrt(std::max(0.0f, variance.at(x, y))) * scale,
+            saturated.at(x, y) > 0);
     }
+    return Status::Ok();
+  };
+  for (const auto& [yx, frames] : by_dot) {
+    const DotRecord& dot = geometry.dots[q];
+    const double l_q = dot.saturated || !dot.measured() ? median_radiance : dot.radiance_dn_per_us;
+    THINSLAB_RETURN_IF_ERROR(measure(frames, dot.position_in_sample_m, l_q, DotName(displayed[q]),
+                                     q % check_stride == 0, [&](int p, double value, double sigma, bool sat) {
+                                       const size_t k = static_cast<size_t>(p) * nd + q;
+                                       slices->value[k] = static_cast<float>(value);
+                                       slices->sigma[k] = static_cast<float>(sigma);
+                                       if (sat) ++saturated_dots[p];
+                                     }));
     ++q;
+  }
+  // Validation dots (FrameRecord::validation): measured the same way, placed from the fitted
+  // monitor geometry with the median L_q (they are not in the all-dots grid), never fitted.
+  std::map<std::pair<double, double>, std::vector<const FrameRecord*>> validation_by_dot;
+  for (const FrameRecord* f : session.ValidationFrames("dot", sample_state)) {
+    if (f->camera_id == camera.id && f->light.dot_px) validation_by_dot[{f->light.dot_px->y(), f->light.dot_px->x()}].push_back(f);
+  }
+  DmfValidationDots& validation = slices->validation;
+  const size_t nv = validation_by_dot.size();
+  validation.value.assign(static_cast<size_t>(np) * nv, 0.0f);
+  validation.sigma.assign(static_cast<size_t>(np) * nv, 0.0f);
+  for (const auto& [yx, frames] : validation_by_dot) {
+    const size_t v = validation.dot_px.size();
+    const Eigen::Vector2d dot_px(yx.second, yx.first);
+    const Eigen::Vector3d position =
+        geometry.sample_from_monitor * Eigen::Vector3d(dot_px.x() * monitor.pixel_pitch_m, dot_px.y() * monitor.pixel_pitch_m, 0);
+    validation.dot_px.push_back(dot_px);
+    validation.positions.push_back(position);
+    THINSLAB_RETURN_IF_ERROR(measure(frames, position, median_radiance, "validation " + DotName(dot_px), false,
+                                     [&](int p, double value, double sigma, bool) {
+                                       validation.value[static_cast<size_t>(p) * nv + v] = static_cast<float>(value);
+                                       validation.sigma[static_cast<size_t>(p) * nv + v] = static_cast<float>(sigma);
+                                     }));
   }
   report->merge_s = Seconds(t);
   report->exposure_warning = report->exposure_check.Warning();

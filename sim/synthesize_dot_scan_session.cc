@@ -47,6 +47,10 @@ SyntheticDotScanOptions::SyntheticDotScanOptions() {
 
 Status SyntheticDotScanOptions::Check() const {
   THINSLAB_RETURN_IF_ERROR(rig.Check());
+  if (validation_dots < 0 || validation_dots > 10000) {
+    return Status::Error("SyntheticDotScanOptions::validation_dots (--validation-dots): must be in [0, 10000], got " +
+                         std::to_string(validation_dots));
+  }
   DotScanSessionOptions s = session;
   s.monitor_width_px = rig.monitor_width_px;
   s.monitor_height_px = rig.monitor_height_px;
@@ -219,6 +223,8 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
   session.sync = SyncForSensor(session.sync, options.rig.sensor);
   session.monitor_width_px = options.rig.monitor_width_px;
   session.monitor_height_px = options.rig.monitor_height_px;
+  const std::vector<Eigen::Vector2d> validation = DotScanValidationDots(session, options.validation_dots);
+  session.validation_dots_px.insert(session.validation_dots_px.end(), validation.begin(), validation.end());
 
   const auto start = std::chrono::steady_clock::now();
   SessionWriter writer;

@@ -37,6 +37,7 @@ struct SyntheticDotScanOptions {
   DotScanSessionOptions session;  // monitor_width_px/height_px are taken from `rig`.
   SlabSampleOptions sample;       // Empty regions = DefaultSlabRegions.
   double truth_pitch_m = 0.25e-3;  // Pitch of regions.exr and of the manifest's sample grid.
+  int validation_dots = 0;  // DotScanValidationDots of the grid, captured as validation frames.
   std::string name = "sim_dot_scan";
 
   Status Check() const;  // Errors name the struct and field.

@@ -18,17 +18,11 @@
 #include "core/file.h"
 #include "core/session_io.h"
 #include "tests/testing/json_file.h"
-#include "tests/testing/run_thinslab.h"
+#include "tests/testing/run_ok.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {
 namespace {
-
-RunResult RunOk(const std::string& args) {
-  const RunResult run = RunThinslab(args);
-  EXPECT_EQ(run.exit_code, 0) << "thinslab " << args << "\n" << run.output;
-  return run;
-}
 
 constexpr char kSmallTables[] = " --photons-k 20 --table-bins 32";
 
@@ -53,19 +47,19 @@ double LitFraction(const std::string& capture) {
 TEST(CliDotGeometry, DenseGridWhoseDotsTouchFitsWithoutHandMadeCalibration) {
   TempDir dir;
   const std::string capture = dir / "dense";
-  RunOk("sim dot-scan " + capture + " --grid-nx 20 --grid-ny 20 --dot-radius-px 7.7 --camera-view-width-m 0.1" +
+  RunThinslabOk("sim dot-scan " + capture + " --grid-nx 20 --grid-ny 20 --dot-radius-px 7.7 --camera-view-width-m 0.1" +
         kSmallTables);
   const double lit = LitFraction(capture);
   std::printf("dense grid: %.0f %% of the all-dots frame lit\n", 100 * lit);
   EXPECT_GT(lit, 0.5);
 
-  const RunResult calib = RunOk("calib dots " + capture);
+  const RunResult calib = RunThinslabOk("calib dots " + capture);
   EXPECT_NE(calib.output.find("displayed dots 400, blobs 400, matched 400"), std::string::npos) << calib.output;
   EXPECT_NE(calib.output.find("dot radius 7.7 monitor px (manifest)"), std::string::npos) << calib.output;
   EXPECT_EQ(calib.output.find("warning"), std::string::npos) << calib.output;
 
   const std::string out = dir / "dmf";
-  const RunResult fit = RunOk("fit dmf " + capture + " --calibration none --pitch-mm 4 --out " + out);
+  const RunResult fit = RunThinslabOk("fit dmf " + capture + " --calibration none --pitch-mm 4 --out " + out);
   EXPECT_EQ(fit.output.find("warning"), std::string::npos) << fit.output;
   const nlohmann::json summary = ReadJsonFile(out + "/summary.json");
   EXPECT_EQ(summary["dot_positions"]["measured"], 400) << summary["dot_positions"].dump();
@@ -81,9 +75,9 @@ TEST(CliDotGeometry, DenseGridWhoseDotsTouchFitsWithoutHandMadeCalibration) {
 TEST(CliDotGeometry, GridBeyondTheViewFitsWithDotsPlacedFromTheGeometry) {
   TempDir dir;
   const std::string capture = dir / "wide";
-  RunOk("sim dot-scan " + capture + " --grid-nx 20 --grid-ny 20 --camera-view-width-m 0.06" + kSmallTables);
+  RunThinslabOk("sim dot-scan " + capture + " --grid-nx 20 --grid-ny 20 --camera-view-width-m 0.06" + kSmallTables);
   const std::string out = dir / "dmf";
-  const RunResult fit = RunOk("fit dmf " + capture + " --pitch-mm 4 --out " + out);
+  const RunResult fit = RunThinslabOk("fit dmf " + capture + " --pitch-mm 4 --out " + out);
   EXPECT_EQ(fit.output.find("was not found"), std::string::npos) << fit.output;
   EXPECT_EQ(fit.output.find("warning"), std::string::npos) << fit.output;
   const nlohmann::json summary = ReadJsonFile(out + "/summary.json");
@@ -100,12 +94,12 @@ TEST(CliDotGeometry, GridBeyondTheViewFitsWithDotsPlacedFromTheGeometry) {
   nlohmann::json session = ReadJsonFile(manifest);
   session["rig"]["monitor"].erase("dot_radius_px");
   ASSERT_TRUE(WriteFileAtomically(manifest, session.dump(2)).ok());
-  const RunResult assumed = RunOk("fit dmf " + capture + " --pitch-mm 4 --out " + out);
+  const RunResult assumed = RunThinslabOk("fit dmf " + capture + " --pitch-mm 4 --out " + out);
   EXPECT_NE(assumed.output.find("warning: " + manifest + ": rig.monitor.dot_radius_px is not given; assuming 2"),
             std::string::npos)
       << assumed.output;
   EXPECT_EQ(ReadJsonFile(out + "/summary.json")["dot_radius"]["source"], "default");
-  RunOk("fit dmf " + capture + " --pitch-mm 4 --dot-radius-px 2.5 --out " + out);
+  RunThinslabOk("fit dmf " + capture + " --pitch-mm 4 --dot-radius-px 2.5 --out " + out);
   const nlohmann::json given = ReadJsonFile(out + "/summary.json")["dot_radius"];
   EXPECT_EQ(given["source"], "option");
   EXPECT_DOUBLE_EQ(given["monitor_px"].get<double>(), 2.5);
