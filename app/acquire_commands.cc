@@ -653,6 +653,7 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   SimDotMonitorOptions monitor;
   SimDisplayText sim_display;
   DotScanSessionOptions dots;
+  int validation_dots = 0;  // DotScanValidationDots of the grid (dot-scan only).
   BracketSessionOptions bracket_session;
   DisplayGammaSessionOptions gamma_session;
   ExposureBracketOptions& bracket = dot_scan ? dots.bracket : gamma ? gamma_session.bracket : bracket_session.bracket;
@@ -691,6 +692,8 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
     parser.AddInt("grid-nx", &dots.grid_nx, "dots per row");
     parser.AddInt("grid-ny", &dots.grid_ny, "dot rows");
     parser.AddDouble("margin-fraction", &dots.margin_fraction, "monitor fraction left free on each side");
+    parser.AddInt("validation-dots", &validation_dots,
+                  "dots at grid-cell centres captured after the grid as validation frames (not fitted)");
     parser.AddBool("capture-all-dots", &dots.capture_all_dots, "capture the all-dots frame without sample");
     parser.AddBool("capture-dark", &dots.capture_dark, "capture a dark bracket with the sample");
     parser.AddString("sample-state", &dots.sample_state, "sample state of the dot frames");
@@ -783,6 +786,11 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   if (dot_scan) {
     dots.monitor_width_px = sim ? monitor.monitor_width_px : devices.window->width();
     dots.monitor_height_px = sim ? monitor.monitor_height_px : devices.window->height();
+    if (validation_dots < 0 || validation_dots > 10000) {
+      return Fail(Status::Error("thinslab acquire dot-scan: --validation-dots must be in [0, 10000], got " +
+                                std::to_string(validation_dots)));
+    }
+    dots.validation_dots_px = DotScanValidationDots(dots, validation_dots);
   }
   std::string error;
   const bool checked = dot_scan ? dots.Check(&error) : gamma ? gamma_session.Check(&error) : bracket_session.Check(&error);

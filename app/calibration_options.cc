@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "app/calibration_options.h"
 
+#include <cstdio>
+
 #include "app/option_parser.h"
 
 namespace thinslab {
@@ -44,7 +46,9 @@ Status CheckDotRadiusOption(const OptionParser& parser, double dot_radius_px) {
 }
 
 std::string AssumedDotRadiusWarning(const std::string& manifest) {
-  return manifest + ": rig.monitor.dot_radius_px is not given; assuming " + std::to_string(kDefaultDotRadiusPx).substr(0, 3) +
+  char radius[32];
+  std::snprintf(radius, sizeof(radius), "%g", kDefaultDotRadiusPx);
+  return manifest + ": rig.monitor.dot_radius_px is not given; assuming " + radius +
          " monitor px (it sets the detection windows and L_q; --dot-radius-px or the manifest field sets it)";
 }
 

@@ -537,7 +537,7 @@ int RunFitDmf(int argc, char** argv) {
   AddDotDetectionOptions(&parser, &run.processing.dot_geometry, &run.processing.dot_radius_px);
   double glass_thickness_mm = -1;
   parser.AddDouble("glass-thickness-mm", &glass_thickness_mm,
-                   "slab thickness [mm] (where the dots' light enters); -1 = the manifest's rig.sample.glass_thickness_m");
+                   "slab thickness [mm] (where the dots' light enters); -1 = rig.sample.glass_thickness_m");
   AddCalibrationOptions(&parser, &run.processing.calibration);
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
   parser.AddInt("threads", &run.fit.num_threads, "threads");

@@ -294,11 +294,12 @@ double BackgroundNoise(const Image& frame, const cv::Mat& box3, const cv::Mat& b
 // Step 3: the frame convolved with a Gaussian of sigma `sigma_monitor_px` on the screen, i.e.
 // covariance sigma^2 J J^T in the image (at least half a pixel). A dot's image is a convex disc;
 // blurred by a Gaussian it is log-concave, so unimodal: touching dots keep separate maxima and a
-// dot's flat top does not break into several.
+// dot's flat top does not break into several. The kernel is cut at 3 sigma and at most 64 px
+// (a Gaussian cut to a box is still log-concave; dots that large need no finer smoothing).
 cv::Mat SmoothLikeADot(const cv::Mat& frame, const Eigen::Matrix2d& J, double sigma_monitor_px) {
   const Eigen::Matrix2d cov = Sqr(sigma_monitor_px) * J * J.transpose() + 0.25 * Eigen::Matrix2d::Identity();
   const Eigen::Matrix2d info = cov.inverse();
-  const int r = static_cast<int>(std::ceil(3 * std::sqrt(std::max(cov(0, 0), cov(1, 1)))));
+  const int r = static_cast<int>(std::min(64.0, std::ceil(3 * std::sqrt(std::max(cov(0, 0), cov(1, 1))))));
   cv::Mat kernel(2 * r + 1, 2 * r + 1, CV_32FC1);
   double sum = 0;
   for (int y = -r; y <= r; ++y) {

@@ -214,8 +214,8 @@ TEST(DotGeometryTest, DenseGridMostlyLitFrameFindsEveryDotWithoutMerging) {
   ASSERT_TRUE(CalibrateDotGeometry(frame, 1000, cam.saturation_dn - cam.black_level_dn, cam, nominal, dots,
                                    dot_options, &sparse_peaks)
                   .ok());
-  std::printf("maxima 0.99 spacings apart: %d blobs, %d matched, %d of them by the grid prior\n", sparse_peaks.num_blobs,
-              sparse_peaks.num_matched, sparse_peaks.num_found_by_grid_prior);
+  std::printf("maxima 0.99 spacings apart: %d blobs, %d matched, %d of them by the grid prior\n",
+              sparse_peaks.num_blobs, sparse_peaks.num_matched, sparse_peaks.num_found_by_grid_prior);
   EXPECT_LT(sparse_peaks.num_blobs, 360);
   EXPECT_EQ(sparse_peaks.num_matched, 400);
   EXPECT_EQ(sparse_peaks.num_found_by_grid_prior, 400 - sparse_peaks.num_blobs);

@@ -108,7 +108,7 @@ bool DmfProcessingOptions::Check(std::string* error) const {
   std::ostringstream e;
   if (pitch_m < 0) e << "pitch must be >= 0, got " << pitch_m;
   else if (!(dot_radius_px >= 0 && dot_radius_px <= 1000)) {
-    e << "dot_radius_px (--dot-radius-px) must be in (0, 1000] px (0: the manifest's), got " << dot_radius_px;
+    e << "dot_radius_px (--dot-radius-px) must be in [0, 1000] px (0: the manifest's), got " << dot_radius_px;
   }
   else if (!(max_saturated_dots >= 0 && max_saturated_dots <= 1)) e << "max_saturated_dots must be in [0, 1]";
   else if (!(max_saturated_points >= 0 && max_saturated_points <= 1)) e << "max_saturated_points must be in [0, 1]";
@@ -373,17 +373,19 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   // monitor geometry with the median L_q (they are not in the all-dots grid), never fitted.
   std::map<std::pair<double, double>, std::vector<const FrameRecord*>> validation_by_dot;
   for (const FrameRecord* f : session.ValidationFrames("dot", sample_state)) {
-    if (f->camera_id == camera.id && f->light.dot_px) validation_by_dot[{f->light.dot_px->y(), f->light.dot_px->x()}].push_back(f);
+    if (f->camera_id != camera.id || !f->light.dot_px) continue;
+    validation_by_dot[{f->light.dot_px->y(), f->light.dot_px->x()}].push_back(f);
   }
   DmfValidationDots& validation = slices->validation;
   const size_t nv = validation_by_dot.size();
   validation.value.assign(static_cast<size_t>(np) * nv, 0.0f);
   validation.sigma.assign(static_cast<size_t>(np) * nv, 0.0f);
+  report->slice_bytes += (validation.value.size() + validation.sigma.size()) * sizeof(float);
   for (const auto& [yx, frames] : validation_by_dot) {
     const size_t v = validation.dot_px.size();
     const Eigen::Vector2d dot_px(yx.second, yx.first);
-    const Eigen::Vector3d position =
-        geometry.sample_from_monitor * Eigen::Vector3d(dot_px.x() * monitor.pixel_pitch_m, dot_px.y() * monitor.pixel_pitch_m, 0);
+    const Eigen::Vector3d position = geometry.sample_from_monitor * Eigen::Vector3d(dot_px.x() * monitor.pixel_pitch_m,
+                                                                                   dot_px.y() * monitor.pixel_pitch_m, 0);
     validation.dot_px.push_back(dot_px);
     validation.positions.push_back(position);
     THINSLAB_RETURN_IF_ERROR(measure(frames, position, median_radiance, "validation " + DotName(dot_px), false,
