@@ -33,6 +33,7 @@ int RunFit(int argc, char** argv);
 int RunDemo(int argc, char** argv);
 int RunFitPhase(int argc, char** argv);
 int RunFitDmf(int argc, char** argv);  // app/dmf_commands.cc
+int RunPredict(int argc, char** argv);  // app/predict_command.cc
 int RunSimLaser(int argc, char** argv);
 int RunCharts(int argc, char** argv);
 int RunBench(int argc, char** argv);    // app/bench_command.cc

@@ -396,6 +396,13 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
   j["dot_radius"] = {{"monitor_px", processing.dot_radius_px}, {"source", processing.dot_radius_source}};
   j["glass_thickness_m"] = processing.glass_thickness_m;
+  // What `thinslab predict` needs to light the sample with any dot (docs/format.md 9.5).
+  const Eigen::Quaterniond& q = processing.sample_from_monitor.rotation;
+  const Eigen::Vector3d& t = processing.sample_from_monitor.translation;
+  j["monitor"] = {{"sample_from_monitor", {{"rotation_wxyz", {q.w(), q.x(), q.y(), q.z()}},
+                                           {"translation_m", {t.x(), t.y(), t.z()}}}},
+                  {"pixel_pitch_m", processing.monitor_pixel_pitch_m},
+                  {"median_dot_radiance_dn_per_us", processing.median_dot_radiance}};
   j["dot_positions"] = {{"measured", processing.num_dots - processing.dots_placed_from_geometry},
                         {"placed_from_geometry", processing.dots_placed_from_geometry},
                         {"found_by_grid_prior", processing.dots_found_by_grid_prior},

@@ -5,6 +5,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <limits>
 #include <optional>
@@ -129,9 +130,11 @@ class PointBuckets {
 
  private:
   int64_t Cell(double v) const { return static_cast<int64_t>(std::floor(v / cell_)); }
-  static int64_t Key(int64_t x, int64_t y) { return (x << 32) ^ (y & 0xffffffff); }
+  static uint64_t Key(int64_t x, int64_t y) {
+    return (static_cast<uint64_t>(x) << 32) ^ (static_cast<uint64_t>(y) & 0xffffffffu);
+  }
   double cell_;
-  std::unordered_map<int64_t, std::vector<std::pair<Eigen::Vector2d, int>>> cells_;
+  std::unordered_map<uint64_t, std::vector<std::pair<Eigen::Vector2d, int>>> cells_;
 };
 
 // Matches displayed dots (monitor px) to blobs through homography H (monitor px -> normalised

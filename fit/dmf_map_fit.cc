@@ -26,15 +26,19 @@ Eigen::Vector3d DmfSliceSet::PointPosition(int p) const {
   return Eigen::Vector3d(grid_min_m.x() + (col + 0.5) * pitch_m, grid_min_m.y() + (row + 0.5) * pitch_m, 0);
 }
 
-Eigen::Vector3d DmfSliceSet::LightEntryPoint(int p) const {
-  const Eigen::Vector3d x = PointPosition(p);
-  if (!(glass_thickness_m > 0)) return x;
+Eigen::Vector3d SlabLightEntryPoint(const Eigen::Vector3d& x, const Eigen::Vector3d& camera_centre, double thickness,
+                                    double eta) {
+  if (!(thickness > 0)) return x;
   // Snell at the flat face: the transverse part of the unit direction shrinks by 1/eta.
   const Eigen::Vector3d o = (camera_centre - x).normalized();
   const Eigen::Vector2d inside_xy = -o.head<2>() / eta;
   const double inside_z = std::sqrt(std::max(1e-12, 1 - inside_xy.squaredNorm()));
-  const Eigen::Vector2d lateral = glass_thickness_m * inside_xy / inside_z;
-  return Eigen::Vector3d(x.x() + lateral.x(), x.y() + lateral.y(), -glass_thickness_m);
+  const Eigen::Vector2d lateral = thickness * inside_xy / inside_z;
+  return Eigen::Vector3d(x.x() + lateral.x(), x.y() + lateral.y(), -thickness);
+}
+
+Eigen::Vector3d DmfSliceSet::LightEntryPoint(int p) const {
+  return SlabLightEntryPoint(PointPosition(p), camera_centre, glass_thickness_m, eta);
 }
 
 DmfSlice DmfSliceSet::Slice(int p) const {

@@ -18,6 +18,14 @@
 
 namespace thinslab {
 
+// Where the light seen at sample point x (on z = 0, seen from `camera_centre`) entered a slab of
+// `thickness` and index `eta` (issue #23 section 5): the camera's ray refracted at the flat mean
+// surface, followed down to the monitor-side face, x + t (d_xy / |d_z|) at z = -t; the specular
+// path, which the lobe's peak follows whatever the roughness (docs/models/dual_microfacet_fit.md,
+// "Slab thickness"). x itself when the thickness is 0.
+Eigen::Vector3d SlabLightEntryPoint(const Eigen::Vector3d& x, const Eigen::Vector3d& camera_centre, double thickness,
+                                    double eta);
+
 // Eq. 12 measurements of the capture's validation dots (FrameRecord::validation: any dot
 // position, never fitted), point-major as DmfSliceSet::value (value[p * num_dots() + v]).
 struct DmfValidationDots {
@@ -50,11 +58,7 @@ struct DmfSliceSet {
   int num_points() const { return width * height; }
   int num_dots() const { return static_cast<int>(dot_positions.size()); }
   Eigen::Vector3d PointPosition(int p) const;
-  // Where the light seen at point p entered the slab (issue #23 section 5): the camera's ray
-  // refracted into the slab at the flat mean surface, followed down to the monitor-side face,
-  // x + t (d_xy / |d_z|) at z = -t; the specular path, which the lobe's peak follows whatever
-  // the roughness (the traced mean of all paths differs by second-order terms;
-  // docs/models/dual_microfacet_fit.md). PointPosition(p) when the thickness is 0.
+  // SlabLightEntryPoint of point p.
   Eigen::Vector3d LightEntryPoint(int p) const;
   // Slice of point p in the optical frame (light side +z), rho_d by Eq. 14.
   DmfSlice Slice(int p) const;

@@ -421,6 +421,8 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   report->dot_distance_correction_m = geometry.distance_correction_m;
   report->dot_distance_warning = MonitorDistanceWarning(geometry.distance_error_m, geometry.distance_error_sigma_m);
   report->median_dot_radiance = median_radiance;
+  report->sample_from_monitor = geometry.sample_from_monitor;
+  report->monitor_pixel_pitch_m = monitor.pixel_pitch_m;
   report->total_s = Seconds(start);
   return Status::Ok();
 }

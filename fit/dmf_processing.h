@@ -78,6 +78,8 @@ struct DmfProcessingReport {
   std::string exposure_warning;
   double median_dot_radiance = 0;  // L_q [DN/us].
   double glass_thickness_m = 0;    // The thickness the fit used.
+  Rigid3d sample_from_monitor;     // The monitor pose the dots were placed with (refined in-plane).
+  double monitor_pixel_pitch_m = 0;
   // The dot radius used and where it came from: "option", "manifest", "default" (assumed 2 px:
   // the caller warns) or the calib/rig.json that holds the dot calibration.
   double dot_radius_px = 0;

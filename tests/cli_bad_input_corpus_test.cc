@@ -678,6 +678,12 @@ std::vector<Case> Cases() {
         {"{in}/session.json"}),
       C("fit_unknown_model", "shadow", none, "fit holography {in}", {"holography"}),
 
+      // ---- thinslab predict ----
+      C("predict_without_fit", "dots", none, "predict {in}", {"fit/dmf/summary.json"}),
+      C("predict_dots_text", "dots", none, "predict {in} --dots abc", {"--dots"}),
+      C("predict_fit_of_shadow_capture", "dots,shadow", none, "predict {in} --fit {shadow}", {"summary.json"}),
+      C("predict_out_is_capture", "dots", none, "predict {in} --out {in}", {"{in}"}),
+
       // ---- thinslab calib camera ----
       C("calib_camera_no_images", "", none, "calib camera --out {out}", {"IMAGES|--images"}),
       C("calib_camera_images_folder_empty", "", MakeDir("{case}/empty"),

@@ -2,14 +2,17 @@
 // Issue #23 section 4 through the binary: validation frames (frames[k].validation, format 1.4)
 // of dots between the grid's. They are never fitted (the fit is the same, bit for bit, with them
 // removed from the manifest), `info` counts them, and `fit dmf` reports how well its maps
-// predict them per region with the noise level beside it; the figure can fail: validation dots
-// recorded at the wrong monitor position read several times worse.
+// predict them per region with the noise level beside it; `thinslab predict` images them in the
+// camera from the fit's outputs alone; both figures can fail: validation dots recorded at the
+// wrong monitor position read several times worse.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "core/exr_io.h"
 #include "core/file.h"
@@ -21,6 +24,20 @@ namespace thinslab {
 namespace {
 
 // The manifest with its validation frames transformed by `edit` (return false to drop one).
+// Median over the dots of `thinslab predict`'s summary.json of their in-lobe relative RMS.
+double MedianPredictionError(const std::string& summary_file, int expected_dots) {
+  const nlohmann::json summary = ReadJsonFile(summary_file);
+  std::vector<double> errors;
+  for (const nlohmann::json& d : summary["dots"]) {
+    EXPECT_TRUE(d["measured"].get<bool>()) << d.dump();
+    if (d["measured"].get<bool>()) errors.push_back(d["relative_rms"].get<double>());
+  }
+  EXPECT_EQ(static_cast<int>(errors.size()), expected_dots);
+  if (errors.empty()) return -1;
+  std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+  return errors[errors.size() / 2];
+}
+
 template <typename Edit>
 void EditValidationFrames(const std::string& capture, const Edit& edit) {
   const std::string manifest = capture + "/session.json";
@@ -57,6 +74,20 @@ TEST(CliValidationDots, ReportedPerRegionNeverFittedAndAbleToFail) {
   EXPECT_LT(error, 0.25);    // Held-out grid dots read 0.04-0.12 per region (docs/models/dual_microfacet_fit.md).
   EXPECT_GT(noise, 0);
 
+  // `thinslab predict`: the same dots imaged in the camera from the fit's outputs alone, against
+  // their HDR-merged frames (per pixel: the 4 mm map's resolution adds to the map-space error).
+  RunThinslabOk("predict " + capture + " --fit " + (dir / "with") + " --out " + (dir / "predict"));
+  const double camera_error = MedianPredictionError(dir / "predict/summary.json", 40);
+  std::printf("thinslab predict: median in-lobe relative RMS per dot %.3f\n", camera_error);
+  EXPECT_GT(camera_error, 0);
+  EXPECT_LT(camera_error, 0.3);
+  Image predicted;
+  ASSERT_TRUE(ReadExr(dir / "predict/dot_0.exr", &predicted).ok());
+  EXPECT_GE(predicted.ChannelIndex("measured"), 0);
+  // A dot the capture has no frame of is predicted, not compared.
+  RunThinslabOk("predict " + capture + " --fit " + (dir / "with") + " --dots 1.5,1.5 --out " + (dir / "corner"));
+  EXPECT_FALSE(ReadJsonFile(dir / "corner/summary.json")["dots"][0]["measured"].get<bool>());
+
   // Never fitted: without them, the same maps.
   const std::string without = dir / "without";
   ASSERT_EQ(std::system(("cp -r " + capture + " " + without).c_str()), 0);
@@ -79,6 +110,10 @@ TEST(CliValidationDots, ReportedPerRegionNeverFittedAndAbleToFail) {
   const double shifted = ReadJsonFile(dir / "shifted/summary.json")["validation"]["regions"][0]["relative_rms"];
   std::printf("validation dots recorded 2.5 mm off: %.3f\n", shifted);
   EXPECT_GT(shifted, 2 * error);
+  RunThinslabOk("predict " + capture + " --fit " + (dir / "shifted") + " --out " + (dir / "predict_shifted"));
+  const double shifted_camera = MedianPredictionError(dir / "predict_shifted/summary.json", 40);
+  std::printf("thinslab predict, dots recorded 2.5 mm off: %.3f\n", shifted_camera);
+  EXPECT_GT(shifted_camera, 1.4 * camera_error);
 }
 
 }  // namespace
