@@ -219,7 +219,8 @@ struct DotImageScale {
 };
 
 Status NominalDotImageScale(const CameraInfo& camera, const MonitorInfo& monitor,
-                            const std::vector<Eigen::Vector2d>& dots, double dot_radius_px, DotImageScale* out) {
+                            const std::vector<Eigen::Vector2d>& dots, const std::vector<size_t>& neighbour,
+                            double dot_radius_px, DotImageScale* out) {
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();
   for (const Eigen::Vector2d& d : dots) centre += d;
   centre /= static_cast<double>(dots.size());
@@ -241,7 +242,6 @@ Status NominalDotImageScale(const CameraInfo& camera, const MonitorInfo& monitor
   out->px_per_monitor_px = J;
   out->largest_stretch = Eigen::JacobiSVD<Eigen::Matrix2d>(J).singularValues()(0);
   std::vector<float> spacing;
-  const std::vector<size_t> neighbour = NearestNeighbours(dots);
   for (size_t d = 0; d < dots.size(); ++d) spacing.push_back(static_cast<float>((dots[neighbour[d]] - dots[d]).norm()));
   out->spacing_monitor_px = Median(spacing);
   out->dot_radius_image_px = dot_radius_px * out->largest_stretch;
@@ -574,8 +574,10 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
   const double inv_t = 1.0 / exposure_us;
 
   // 1. The dots' size and spacing in the image, from the nominal geometry.
+  const std::vector<size_t> neighbour = NearestNeighbours(displayed_dots_px);  // Also for the matching.
   DotImageScale scale;
-  THINSLAB_RETURN_IF_ERROR(NominalDotImageScale(camera, monitor, displayed_dots_px, options.dot_radius_px, &scale));
+  THINSLAB_RETURN_IF_ERROR(
+      NominalDotImageScale(camera, monitor, displayed_dots_px, neighbour, options.dot_radius_px, &scale));
   const int half = static_cast<int>(std::ceil(scale.dot_radius_image_px)) + options.window_margin_px;
 
   // 2. Local background and the noise at it.
@@ -673,7 +675,6 @@ Status CalibrateDotGeometry(const Image& frame_dn, double exposure_us, double sa
   }
   if (seeds.empty()) return Status::Error("dots: cannot seed the grid match (nominal monitor not in front of the camera?)");
   const double ransac_threshold = 1.5 / camera.fx_px;  // 1.5 px in normalised units.
-  const std::vector<size_t> neighbour = NearestNeighbours(displayed_dots_px);
   // A regular grid matches itself after a half or quarter turn or a mirror, so several seeds
   // can match every dot; among those with the most matches (less one), the nominal geometry
   // decides: the hypothesis whose dot predictions are closest to the nominal ones wins.

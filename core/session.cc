@@ -19,26 +19,31 @@ const CameraInfo* Session::FindCamera(const std::string& id) const {
   return nullptr;
 }
 
-std::vector<const FrameRecord*> Session::UsableFrames(const std::string& frame_kind,
-                                                      const std::string& sample_state) const {
+namespace {
+
+// Usable frames (status ok or retried) of `kind` (and sample state, if non-empty) whose
+// validation flag is `validation`.
+std::vector<const FrameRecord*> UsableFramesOf(const std::vector<FrameRecord>& frames, const std::string& kind,
+                                               const std::string& sample_state, bool validation) {
   std::vector<const FrameRecord*> out;
   for (const auto& frame : frames) {
-    if (frame.kind != frame_kind || frame.status == FrameStatus::kFailed || frame.validation) continue;
+    if (frame.kind != kind || frame.status == FrameStatus::kFailed || frame.validation != validation) continue;
     if (!sample_state.empty() && frame.sample_state != sample_state) continue;
     out.push_back(&frame);
   }
   return out;
 }
 
+}  // namespace
+
+std::vector<const FrameRecord*> Session::UsableFrames(const std::string& frame_kind,
+                                                      const std::string& sample_state) const {
+  return UsableFramesOf(frames, frame_kind, sample_state, false);
+}
+
 std::vector<const FrameRecord*> Session::ValidationFrames(const std::string& frame_kind,
                                                           const std::string& sample_state) const {
-  std::vector<const FrameRecord*> out;
-  for (const auto& frame : frames) {
-    if (frame.kind != frame_kind || frame.status == FrameStatus::kFailed || !frame.validation) continue;
-    if (!sample_state.empty() && frame.sample_state != sample_state) continue;
-    out.push_back(&frame);
-  }
-  return out;
+  return UsableFramesOf(frames, frame_kind, sample_state, true);
 }
 
 }  // namespace thinslab
