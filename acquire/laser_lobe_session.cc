@@ -36,12 +36,15 @@ std::vector<PlannedFrame> PlanLaserLobeSession(const LaserLobeSessionOptions& op
     const char* sample_state;
     bool laser_on;
     const char* pattern;
+    bool validation;
   };
   std::vector<Step> steps;
-  if (options.capture_flat) steps.push_back({"flat", "none", false, "flat"});
-  steps.push_back({"dark", "none", false, ""});
-  steps.push_back({"laser", "contaminated", true, ""});
-  if (options.capture_clean) steps.push_back({"laser", "clean", true, ""});
+  if (options.capture_flat) steps.push_back({"flat", "none", false, "flat", false});
+  steps.push_back({"dark", "none", false, "", false});
+  steps.push_back({"laser", "contaminated", true, "", false});
+  // Before the clean bracket: no extra sample change.
+  if (options.capture_validation) steps.push_back({"laser", "contaminated", true, "", true});
+  if (options.capture_clean) steps.push_back({"laser", "clean", true, "", false});
   ExposureBracketOptions flat_bracket;
   flat_bracket.exposures_us = options.exposure_times_us;
   flat_bracket.refresh_period_s = refresh_period_s;
@@ -57,6 +60,7 @@ std::vector<PlannedFrame> PlanLaserLobeSession(const LaserLobeSessionOptions& op
         p.pattern = step.pattern;
         p.requested_exposure_us = requested_us;
         p.laser_on = step.laser_on;
+        p.validation = step.validation;
         p.refresh_locked = lit_by_display;
         plan.push_back(p);
       }

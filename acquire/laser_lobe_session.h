@@ -29,6 +29,9 @@ struct LaserLobeSessionOptions {
   int frames_per_exposure = 1;
   bool capture_clean = true;  // Clean-glass bracket for background subtraction and checks.
   bool capture_flat = true;   // Flat-field bracket of the board (projector "flat").
+  // A second contaminated bracket marked FrameRecord::validation: never fitted; `fit phase`
+  // reports how well the fitted lobe predicts it (issue #23 section 4).
+  bool capture_validation = false;
   // Synchronisation rule and retries (sync.max_retries further attempts after a failed capture).
   DisplaySyncOptions sync;
   // Largest accepted mismatch of an applied flat exposure to whole refresh periods (fraction of one).
@@ -37,7 +40,7 @@ struct LaserLobeSessionOptions {
   bool Check(std::string* error) const;
 };
 
-// The frames in order: flat, dark, laser (contaminated), laser (clean); `refresh_period_s` of
+// The frames in order: flat, dark, laser (contaminated), validation laser (contaminated), laser (clean); `refresh_period_s` of
 // the flat-field source (0: none) rounds the flat bracket.
 std::vector<PlannedFrame> PlanLaserLobeSession(const LaserLobeSessionOptions& options, double refresh_period_s);
 

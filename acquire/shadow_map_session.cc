@@ -12,6 +12,9 @@ bool ShadowMapSessionOptions::Check(std::string* error) const {
     msg << "ShadowMapSessionOptions::frames_per_state = " << frames_per_state << ". Violated constraint: >= 1";
   } else if (dark_frames < 0) {
     msg << "ShadowMapSessionOptions::dark_frames = " << dark_frames << ". Violated constraint: >= 0";
+  } else if (validation_frames < 0 || validation_frames > 10000) {
+    msg << "ShadowMapSessionOptions::validation_frames = " << validation_frames
+        << ". Violated constraint: in [0, 10000]";
   } else if (!(exposure_time_us > 0)) {
     msg << "ShadowMapSessionOptions::exposure_time_us = " << exposure_time_us << ". Violated constraint: > 0";
   } else if (!(max_refresh_mismatch >= 0)) {
@@ -31,11 +34,13 @@ std::vector<PlannedFrame> PlanShadowMapSession(const ShadowMapSessionOptions& op
     const char* sample_state;
     const char* pattern;
     int count;
+    bool validation;
   };
   const Step steps[] = {
-      {"dark", "clean", "", options.dark_frames},
-      {"reference", "clean", "flat", options.frames_per_state},
-      {"shadow", "contaminated", "flat", options.frames_per_state},
+      {"dark", "clean", "", options.dark_frames, false},
+      {"reference", "clean", "flat", options.frames_per_state, false},
+      {"shadow", "contaminated", "flat", options.frames_per_state, false},
+      {"shadow", "contaminated", "flat", options.validation_frames, true},
   };
   std::vector<PlannedFrame> plan;
   for (const Step& step : steps) {
@@ -44,6 +49,7 @@ std::vector<PlannedFrame> PlanShadowMapSession(const ShadowMapSessionOptions& op
       p.kind = step.kind;
       p.sample_state = step.sample_state;
       p.pattern = step.pattern;
+      p.validation = step.validation;
       p.requested_exposure_us = options.exposure_time_us;  // Dark too: it is subtracted from the others.
       plan.push_back(p);
     }

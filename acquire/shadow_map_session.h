@@ -23,6 +23,9 @@ struct ShadowMapSessionOptions {
   // Frames per state; the fit averages them (noise falls as 1/sqrt(n)).
   int frames_per_state = 4;
   int dark_frames = 2;
+  // Further shadow frames, marked FrameRecord::validation: never fitted; `fit tau` reports how
+  // well the map predicts them (issue #23 section 4).
+  int validation_frames = 0;
   // Requested exposure; the applied (read-back) one is recorded.
   double exposure_time_us = 20000;
   // Synchronisation rule and retries (sync.max_retries further attempts after a failed capture).
@@ -33,7 +36,7 @@ struct ShadowMapSessionOptions {
   bool Check(std::string* error) const;
 };
 
-// The frames in order: dark, reference, shadow.
+// The frames in order: dark, reference, shadow, validation shadow.
 std::vector<PlannedFrame> PlanShadowMapSession(const ShadowMapSessionOptions& options);
 
 Status RunShadowMapSession(const ShadowMapSessionOptions& options, Camera* camera,

@@ -434,6 +434,8 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
   } else {
     parser.AddInt("frames", &session.frames_per_state, "frames per state (shadow, reference)");
     parser.AddInt("dark-frames", &session.dark_frames, "dark frames (projector off)");
+    parser.AddInt("validation-frames", &session.validation_frames,
+                  "further shadow frames marked validation (not fitted; fit tau reports how well it predicts them)");
   }
   parser.AddDouble("exposure-us", &session.exposure_time_us, "exposure [us]");
   AddSyncOptions(&parser, &session.sync);
@@ -514,6 +516,8 @@ int AcquireLaser(int argc, char** argv, bool sim) {
   parser.AddInt("frames-per-exposure", &session.frames_per_exposure, "frames per bracket exposure");
   parser.AddBool("capture-clean", &session.capture_clean, "also capture the clean glass");
   parser.AddBool("capture-flat", &session.capture_flat, "also capture the board flat field");
+  parser.AddBool("capture-validation", &session.capture_validation,
+                 "also capture a second contaminated bracket marked validation (fit phase reports how well it predicts it)");
   AddSyncOptions(&parser, &session.sync);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) return Help(parser);

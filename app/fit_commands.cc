@@ -11,6 +11,7 @@
 #include "app/commands.h"
 #include "app/layer_from_phase.h"
 #include "app/option_parser.h"
+#include "app/prediction_report.h"
 #include "calib/shadow_map_preparation.h"
 #include "core/exr_io.h"
 #include "core/false_color.h"
@@ -31,7 +32,8 @@ std::string RigidToJson(const Rigid3d& t) {
 std::string PointToJson(const Eigen::Vector2d& p) { return nlohmann::json({p.x(), p.y()}).dump(); }
 
 std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, const CaptureCompleteness& capture,
-                        const TauFitOptions& fit, const PhaseLayerChoice* phase, double color_max) {
+                        const TauFitOptions& fit, const PhaseLayerChoice* phase, double color_max,
+                        const nlohmann::json& validation) {
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
   j["format_version"] = "1.0";
@@ -58,6 +60,9 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
                  {"dark", data.num_dark_frames}};
   j["noise"] = data.noise.ToJson();
   j["timings_s"] = {{"plain", s.plain_s}, {"refine", s.refine_s}, {"fit_total", s.total_s}};
+  // What predict reads back to recompute the model (fit/tau_prediction.h).
+  j["model_options"] = {{"tau_max", fit.tau_max}, {"kernel_max_angle_deg", fit.kernel_max_angle_deg}};
+  j["validation"] = validation;
   return j.dump(2) + "\n";
 }
 
@@ -106,6 +111,21 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   }
   TauMaps maps;
   THINSLAB_RETURN_IF_ERROR(FitTau(fit, data, &maps, summary).WithContext(session_dir));
+  // Validation shadow frames (issue #23 section 4): the same light state as the fitted ones, so
+  // the prediction is the fitted shadow the map reproduces, with that shadow's noise (the
+  // reference cancels); the comparison shows repeatability (a moved sample, drifting light) and
+  // whether the noise model holds. `thinslab predict` predicts other board distances.
+  nlohmann::json validation;  // null: no validation frames.
+  std::string validation_text;
+  if (data.num_validation_frames > 0) {
+    const std::vector<ShadowPredictionRegion> regions =
+        CompareShadowWithMaps(fit, maps.tau, data, maps.reference, data.shadow_variance, false, nullptr);
+    validation = {{"frames", data.num_validation_frames},
+                  {"board_distance_m", data.board_distance_m},
+                  {"regions", ShadowRegionsJson(regions)}};
+    validation_text = "validation shadow (" + std::to_string(data.num_validation_frames) + " frames), predicted from the map:\n" +
+                      ShadowRegionsText(regions);
+  }
 
   const SampleInfo& sample = session.rig.sample;
   Image& tau = maps.tau;
@@ -131,8 +151,10 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_falsecolor.png"), tau, 0, &status, color));
   color.label = "tau Eq.7";
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_plain_falsecolor.png"), tau, 1, &status, color));
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value)));
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value, validation)));
+  THINSLAB_RETURN_IF_ERROR(
+      WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport() + validation_text));
+  if (!validation_text.empty()) std::cout << validation_text;
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
 
   const std::string truth_path = JoinPath(JoinPath(session_dir, "ground_truth"), "tau.exr");

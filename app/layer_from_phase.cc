@@ -6,10 +6,9 @@
 #include "core/file.h"
 
 namespace thinslab {
-namespace {
 
-Status ReadJsonFile(const std::string& path, nlohmann::json* j) {
-  if (!FileExists(path)) return Status::Error(path + ": not found (expected a `thinslab fit phase` output)");
+Status ReadJsonObjectFile(const std::string& path, const std::string& expected, nlohmann::json* j) {
+  if (!FileExists(path)) return Status::Error(path + ": not found (expected " + expected + ")");
   std::string text;
   THINSLAB_RETURN_IF_ERROR(ReadFileToString(path, &text));
   *j = nlohmann::json::parse(text, nullptr, false);
@@ -17,13 +16,11 @@ Status ReadJsonFile(const std::string& path, nlohmann::json* j) {
   return Status::Ok();
 }
 
-}  // namespace
-
 Status ReadPhaseLayerChoice(const std::string& phase_dir, PhaseLayerChoice* choice) {
   *choice = PhaseLayerChoice();
   choice->summary_path = JoinPath(phase_dir, "summary.json");
   nlohmann::json summary;
-  THINSLAB_RETURN_IF_ERROR(ReadJsonFile(choice->summary_path, &summary));
+  THINSLAB_RETURN_IF_ERROR(ReadJsonObjectFile(choice->summary_path, "a `thinslab fit phase` output", &summary));
   const std::string& path = choice->summary_path;
   if (!summary.contains("model") || summary["model"] != "gu2007_eq8") {
     return Status::Error(path + ": model: expected \"gu2007_eq8\" (a `thinslab fit phase` summary)");
@@ -47,7 +44,7 @@ Status ReadPhaseLayerChoice(const std::string& phase_dir, PhaseLayerChoice* choi
   const std::string ladder_path = JoinPath(phase_dir, "ladder.json");
   if (result == "success" && FileExists(ladder_path)) {
     nlohmann::json ladder;
-    THINSLAB_RETURN_IF_ERROR(ReadJsonFile(ladder_path, &ladder));
+    THINSLAB_RETURN_IF_ERROR(ReadJsonObjectFile(ladder_path, "a `thinslab fit phase` output", &ladder));
     if (!ladder.contains("chosen_rung") || !ladder["chosen_rung"].is_number_integer() ||
         ladder["chosen_rung"].get<int>() < 0 || ladder["chosen_rung"].get<int>() > 2) {
       return Status::Error(ladder_path + ": chosen_rung: expected 0, 1 or 2");

@@ -7,12 +7,18 @@
 // measured by the lobe fit and stays the tau fit's option.
 #pragma once
 
+#include <nlohmann/json.hpp>
+
 #include <string>
 
 #include "core/status.h"
 #include "fit/tau_fit.h"
 
 namespace thinslab {
+
+// Reads PATH as a JSON object; errors name the file and, when it is missing, `expected` (what
+// should have written it, e.g. "a `thinslab fit phase` output").
+Status ReadJsonObjectFile(const std::string& path, const std::string& expected, nlohmann::json* j);
 
 struct PhaseLayerChoice {
   std::string summary_path;

@@ -15,6 +15,7 @@
 #include "app/commands.h"
 #include "fit/laser_lobe_ladder.h"
 #include "app/option_parser.h"
+#include "app/prediction_report.h"
 #include "core/exr_io.h"
 #include "core/file.h"
 #include "core/math.h"
@@ -84,7 +85,7 @@ Status WriteLobePlot(const std::string& path, const std::vector<LaserRing>& ring
 }
 
 std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images, const CaptureCompleteness& capture,
-                        const nlohmann::json& truth) {
+                        const nlohmann::json& truth, const nlohmann::json& validation) {
   const SessionCalibration& calibration = images.calibration;
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
@@ -123,6 +124,7 @@ std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images,
   j["flat_fielded"] = s.flat_fielded;
   j["clean_subtracted"] = s.clean_subtracted;
   j["timings_s"] = {{"fit", s.total_s}};
+  j["validation"] = validation;
   j["thinslab_version"] = THINSLAB_VERSION_STRING;
   j["git_hash"] = THINSLAB_GIT_HASH;
   if (!truth.is_null()) j["ground_truth"] = truth;
@@ -178,6 +180,29 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
     THINSLAB_RETURN_IF_ERROR(FitLaserLobeLadder(*rings, chosen, 2.0, &ladder_result).WithContext(session_dir));
   }
   if (ladder != nullptr) *ladder = ladder_result;
+  // A validation lobe (issue #23 section 4): a second contaminated bracket, never fitted, against
+  // Eq. 8 with the fitted beta, g and tau out to the fit's outermost angle.
+  nlohmann::json validation;  // null: no validation frames.
+  std::string validation_text;
+  if (!images.validation_lobe.empty()) {
+    validation = {{"frames", images.validation_lobe.num_frames}};
+    if (summary->IsUsable()) {
+      PhaseFitOptions at_fit = options;
+      at_fit.max_theta_auto = false;
+      at_fit.max_theta_deg = summary->max_theta_deg;
+      LaserLobeImages validation_images = images;
+      validation_images.lobe = images.validation_lobe;
+      LobePrediction prediction;
+      THINSLAB_RETURN_IF_ERROR(PredictLaserLobe(at_fit, summary->beta, summary->g, summary->tau, images.board_distance_m,
+                                                validation_images, &prediction)
+                                   .WithContext(session_dir + ": validation laser frames"));
+      validation.update(LobeBandsJson(prediction));
+      validation_text = "validation lobe (" + std::to_string(images.validation_lobe.num_frames) +
+                        " frames), predicted by the fitted Eq. 8:\n" + LobeBandsText(prediction);
+    } else {
+      validation["skipped"] = "the fit did not succeed";
+    }
+  }
   nlohmann::json truth;
   const std::string truth_path = JoinPath(JoinPath(session_dir, "ground_truth"), "truth.json");
   if (FileExists(truth_path)) {
@@ -186,8 +211,10 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
     truth = nlohmann::json::parse(text, nullptr, false);
     if (truth.is_discarded()) return Status::Error(truth_path + ": not valid JSON");
   }
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images, capture, truth)));
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport()));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images, capture, truth, validation)));
+  THINSLAB_RETURN_IF_ERROR(
+      WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport() + validation_text));
+  if (!validation_text.empty()) std::cout << validation_text;
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "rings.csv"), RingsCsv(*rings)));
   if (has_ladder) {
     THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "ladder.json"), LaserLadderJson(ladder_result)));
@@ -290,6 +317,8 @@ int RunSimLaser(int argc, char** argv) {
   parser.AddInt("frames-per-exposure", &options.session.frames_per_exposure, "frames per bracket exposure");
   parser.AddBool("capture-clean", &options.session.capture_clean, "also capture the clean glass");
   parser.AddBool("capture-flat", &options.session.capture_flat, "also capture the board flat field");
+  parser.AddBool("capture-validation", &options.session.capture_validation,
+                 "also capture a second contaminated bracket marked validation (fit phase reports how well it predicts it)");
   parser.AddUint64("seed", &rig.seed, "seed of every random choice");
   parser.AddDouble("spike-fill", &rig.spike_fill, "unscattered spike at the shortest exposure / full well");
   std::string exposures;

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
-// `thinslab predict CAPTURE`: the images a dot-scan fit predicts for dots it was not fitted to
-// (issue #23 section 4; fit/dmf_prediction.h), in the capture's camera, against the capture's
-// frames of those dots where it has them. Writes OUT (default CAPTURE/fit/predict) atomically:
+// `thinslab predict CAPTURE`: what a fit predicts for light states it was not fitted to (issue
+// #23 section 4). Shadow maps and laser lobes: app/predict_layer.cc. Dot scans: the images a
+// dot-scan fit predicts for dots (fit/dmf_prediction.h), in the capture's camera, against the
+// capture's frames of those dots where it has them. Writes OUT (default CAPTURE/fit/predict) atomically:
 //   dot_<k>.exr    channels predicted, valid (and measured, variance: the HDR merge of the
 //                  capture's frames of that dot), DN/us with the black level and darks removed
 //   summary.json   per dot: dot_px, measured, pixels, relative_rms, noise_relative_rms
@@ -15,6 +16,7 @@
 #include "app/capture_options.h"
 #include "app/commands.h"
 #include "app/option_parser.h"
+#include "app/prediction_report.h"
 #include "calib/frame_noise.h"
 #include "calib/hdr_merge.h"
 #include "core/exr_io.h"
@@ -44,17 +46,54 @@ Status ParseDots(const std::string& text, std::vector<Eigen::Vector2d>* dots) {
   return Status::Ok();
 }
 
+// Which fit FIT_DIR holds, from its files; without --fit, the capture kind's fit folder.
+Status ResolveFit(const std::string& session_dir, const Session& session, std::string* fit_dir, std::string* kind) {
+  const std::string fits = JoinPath(session_dir, "fit");
+  if (fit_dir->empty()) {
+    if (session.kind == "shadow_map") {
+      *fit_dir = JoinPath(fits, "tau");
+    } else if (session.kind == "laser_lobe") {
+      *fit_dir = JoinPath(fits, "phase");
+    } else if (session.kind == "dot_scan") {
+      *fit_dir = JoinPath(fits, "dmf");
+    } else {
+      return Status::Error(JoinPath(session_dir, kSessionManifestName) + ": kind \"" + session.kind +
+                           "\": predict knows shadow_map, laser_lobe and dot_scan captures; give the fit with --fit");
+    }
+  }
+  if (FileExists(JoinPath(*fit_dir, "tau.exr"))) {
+    *kind = "tau";
+  } else if (FileExists(JoinPath(*fit_dir, "rings.csv"))) {
+    *kind = "phase";
+  } else if (FileExists(JoinPath(*fit_dir, "maps.exr"))) {
+    *kind = "dmf";
+  } else {
+    return Status::Error(*fit_dir + ": not an output of `thinslab fit tau`, `fit phase` or `fit dmf` (no tau.exr, "
+                                    "rings.csv or maps.exr); run the fit first or give its folder with --fit");
+  }
+  return Status::Ok();
+}
+
 Status Predict(const std::string& session_dir, std::string fit_dir, std::string out_dir, const std::string& dots_text,
                const SessionCalibrationOptions& calibration_options, bool allow_incomplete) {
   if (session_dir.empty()) return Status::Error("thinslab predict: CAPTURE is required");
+  Session session;
+  THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete, &session));
   std::vector<Eigen::Vector2d> dots;
   if (!dots_text.empty()) THINSLAB_RETURN_IF_ERROR(ParseDots(dots_text, &dots));
-  if (fit_dir.empty()) fit_dir = JoinPath(JoinPath(session_dir, "fit"), "dmf");
+  std::string kind;
+  THINSLAB_RETURN_IF_ERROR(ResolveFit(session_dir, session, &fit_dir, &kind));
+  if (!dots.empty() && kind != "dmf") {
+    return Status::Error("thinslab predict: --dots applies to `fit dmf` outputs; " + fit_dir + " is a `fit " + kind +
+                         "` output");
+  }
   if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "predict");
   StagedDirectory out(out_dir, "predict", {{session_dir, {"fit"}}, {fit_dir, {}}});
   THINSLAB_RETURN_IF_ERROR(out.Init());
-  Session session;
-  THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete, &session));
+  if (kind != "dmf") {
+    const PredictRun run{session_dir, fit_dir, out_dir, calibration_options};
+    return kind == "tau" ? PredictShadowFromTau(run, session, &out) : PredictLobeFromPhase(run, session, &out);
+  }
   const std::string manifest = JoinPath(session_dir, kSessionManifestName);
   if (session.rig.cameras.empty()) return Status::Error(manifest + ": rig.cameras is empty");
   DmfFitOnDisk fit;
@@ -135,6 +174,7 @@ Status Predict(const std::string& session_dir, std::string fit_dir, std::string 
   }
   nlohmann::json j;
   j["format"] = "thinslab-predict-summary";
+  j["kind"] = "dots";
   j["session"] = session_dir;
   j["fit"] = fit_dir;
   j["lobe_fraction"] = 0.1;
@@ -154,8 +194,10 @@ int RunPredict(int argc, char** argv) {
   SessionCalibrationOptions calibration;
   bool allow_incomplete = false;
   OptionParser parser("predict");
-  parser.AddPositional("CAPTURE", &session_dir, "dot-scan capture whose fit predicts");
-  parser.AddString("fit", &fit_dir, "output folder of `thinslab fit dmf` (default CAPTURE/fit/dmf)");
+  parser.AddPositional("CAPTURE", &session_dir, "capture whose frames the fit predicts (may be another capture of the fitted sample)");
+  parser.AddString("fit", &fit_dir,
+                   "output folder of `thinslab fit tau`, `fit phase` or `fit dmf` (default CAPTURE/fit/tau, phase or dmf by "
+                   "the capture's kind)");
   parser.AddString("dots", &dots, "dots to predict, 'x,y;x,y' [monitor px] (default: the capture's validation dots)");
   parser.AddString("out", &out_dir, "output folder (default CAPTURE/fit/predict)");
   AddCalibrationOptions(&parser, &calibration);

@@ -46,6 +46,8 @@ void AddSimShadowOptions(OptionParser* parser, SyntheticShadowSessionOptions* op
   parser->AddUint64("seed", &rig.seed, "seed of every random choice of the simulation");
   parser->AddInt("frames", &options->session.frames_per_state, "frames per state (shadow, reference)");
   parser->AddInt("dark-frames", &options->session.dark_frames, "dark frames (projector off)");
+  parser->AddInt("validation-frames", &options->session.validation_frames,
+                 "further shadow frames marked validation (not fitted; fit tau reports how well it predicts them)");
   parser->AddString("name", &options->name, "session name");
 }
 

@@ -152,6 +152,16 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
   THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response,
                                            of_camera(session.UsableFrames("flat")), read_noise, noise, rectifier,
                                            &images->flat));
+  const auto validation = of_camera(session.ValidationFrames("laser", "contaminated"));
+  std::set<double> validation_exposures;
+  for (const auto* f : validation) validation_exposures.insert(f->exposure_time_us);
+  if (validation_exposures.size() == 1 && !camera.linear_frames()) {
+    return Status::Error(manifest + ": frames: the validation 'laser' frames hold a single exposure_time_us (" +
+                         std::to_string(*validation_exposures.begin()) +
+                         "); a validation lobe needs an exposure bracket like the fitted one");
+  }
+  THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response, validation, read_noise, noise,
+                                           rectifier, &images->validation_lobe));
   return Status::Ok();
 }
 

@@ -41,6 +41,9 @@ struct LaserLobeImages {
   BoardHdr lobe;    // Laser on, contaminated sample.
   BoardHdr clean;   // Laser on, clean glass (optional).
   BoardHdr flat;    // Board flat field (optional).
+  // Laser on, contaminated, frames marked validation (never fitted; `fit phase` reports how well
+  // the fitted lobe predicts it); empty when the capture has none.
+  BoardHdr validation_lobe;
   Image outside;    // 1 where the board pixel is outside the camera view.
   Eigen::Vector2d grid_min_m = Eigen::Vector2d::Zero();
   double pixel_pitch_m = 0;

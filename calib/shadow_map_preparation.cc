@@ -144,6 +144,7 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   const auto shadow_frames = of_camera(session.UsableFrames("shadow"));
   const auto reference_frames = of_camera(session.UsableFrames("reference"));
   const auto dark_frames = of_camera(session.UsableFrames("dark"));
+  const auto validation_frames = of_camera(session.ValidationFrames("shadow"));
   if (shadow_frames.empty()) {
     return Status::Error(manifest + ": frames: no usable frame of kind 'shadow' for camera '" + camera.id + "'");
   }
@@ -196,6 +197,15 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
     }
   }
   maps->saturated = rectifier.RectifyAny(saturated);
+  if (!validation_frames.empty()) {
+    AveragedFrames validation;
+    THINSLAB_RETURN_IF_ERROR(
+        AverageFrames(session_dir, session, camera, response, validation_frames, dark, maps->noise, &validation));
+    maps->num_validation_frames = validation.count;
+    maps->validation_shadow = rectifier.Rectify(validation.mean_dn_per_us);
+    maps->validation_shadow_variance = rectifier.RectifyVariance(validation.variance);
+    maps->validation_saturated = rectifier.RectifyAny(validation.saturated);
+  }
   if (!maps->calibration.flat_field.empty()) {
     // A map pixel touching an invalid flat-field pixel gets no flat (0).
     Image invalid(camera.width_px, camera.height_px);

@@ -35,6 +35,10 @@ struct RectifiedShadowMaps {
   Image reference;           // Mean DN per microsecond, clean sample; empty if not captured.
   Image shadow_variance;     // Variance of `shadow` (DN/us)^2.
   Image reference_variance;  // Variance of `reference`.
+  // The validation shadow frames (FrameRecord::validation, never fitted) averaged and rectified
+  // like `shadow`; empty when the capture has none.
+  Image validation_shadow, validation_shadow_variance;
+  Image validation_saturated;  // 1 where a contributing raw validation pixel saturated.
   Image saturated;           // 1 where a contributing raw pixel saturated in any frame.
   Image outside;             // 1 where the board point is outside the camera image.
   // calib/flat_field.exr rectified (unitless, 0 where invalid); empty when the session has none.
@@ -45,6 +49,7 @@ struct RectifiedShadowMaps {
   int num_shadow_frames = 0;
   int num_reference_frames = 0;
   int num_dark_frames = 0;
+  int num_validation_frames = 0;
   FrameNoiseModel noise;  // Of the camera's frames (calib/frame_noise.h), in summary.json.
   CameraInfo camera;                 // The manifest camera with the calibration applied.
   SessionCalibration calibration;    // What was applied.

@@ -253,16 +253,21 @@ bool FitEq8ToRings(const PhaseFitOptions& options, const std::vector<LaserRing>&
 namespace {
 
 // FitPhase at options.max_theta_deg.
-Status FitPhaseAtMaxTheta(const PhaseFitOptions& options, const LaserLobeImages& images, std::vector<LaserRing>* rings,
-                          PhaseFitSummary* summary) {
-  const auto t0 = std::chrono::steady_clock::now();
-  *summary = PhaseFitSummary();
-  std::string error;
-  if (!options.Check(&error)) return Status::Error(error);
+// The spike core's radius: rings start here (PhaseFitOptions::core_beam_radii).
+double LaserCoreRadius(const PhaseFitOptions& options, const LaserLobeImages& images) {
+  return std::max(options.core_beam_radii * images.beam_radius_m,
+                  images.beam_radius_m + options.core_margin_px * images.pixel_pitch_m);
+}
+
+}  // namespace
+
+Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& images,
+                         Eigen::Vector2d* beam_centre_m, std::vector<LaserRing>* rings, bool* flat_fielded,
+                         bool* clean_subtracted) {
   if (images.lobe.empty()) return Status::Error("FitPhase: no contaminated laser lobe");
   if (!(images.board_distance_m > 0)) return Status::Error("FitPhase: board distance must be > 0");
-  THINSLAB_RETURN_IF_ERROR(FindBeamCentre(images, &summary->beam_centre_m));
-  const Eigen::Vector2d centre = summary->beam_centre_m;
+  THINSLAB_RETURN_IF_ERROR(FindBeamCentre(images, beam_centre_m));
+  const Eigen::Vector2d centre = *beam_centre_m;
   const Image& lobe = images.lobe.radiance;
   const int w = lobe.width(), h = lobe.height();
   const double p = images.pixel_pitch_m, d = images.board_distance_m;
@@ -276,11 +281,10 @@ Status FitPhaseAtMaxTheta(const PhaseFitOptions& options, const LaserLobeImages&
     if (!(flat_centre > 0)) return Status::Error("FitPhase: the flat field has no signal at the beam centre");
   }
   const bool subtract = options.subtract_clean && !images.clean.empty();
-  summary->flat_fielded = flat;
-  summary->clean_subtracted = subtract;
+  *flat_fielded = flat;
+  *clean_subtracted = subtract;
 
-  const double r_core = std::max(options.core_beam_radii * images.beam_radius_m,
-                                 images.beam_radius_m + options.core_margin_px * p);
+  const double r_core = LaserCoreRadius(options, images);
   const double r_max = d * std::tan(options.max_theta_deg * kPi / 180);
   const double ring_w = options.ring_width_px * p;
   const int num_bins = std::max(1, static_cast<int>((r_max - r_core) / ring_w));
@@ -321,6 +325,20 @@ Status FitPhaseAtMaxTheta(const PhaseFitOptions& options, const LaserLobeImages&
     ring.pixels = static_cast<int>(bins[k].size());
     rings->push_back(ring);
   }
+  return Status::Ok();
+}
+
+namespace {
+
+Status FitPhaseAtMaxTheta(const PhaseFitOptions& options, const LaserLobeImages& images, std::vector<LaserRing>* rings,
+                          PhaseFitSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
+  *summary = PhaseFitSummary();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  THINSLAB_RETURN_IF_ERROR(MeasureLaserRings(options, images, &summary->beam_centre_m, rings, &summary->flat_fielded,
+                                             &summary->clean_subtracted));
+  const double r_core = LaserCoreRadius(options, images);
   summary->num_rings = static_cast<int>(rings->size());
   if (rings->size() < 5) {
     std::ostringstream msg;
@@ -500,6 +518,59 @@ Status FitPhase(const PhaseFitOptions& options, const LaserLobeImages& images, s
     }
   }
   summary->total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return Status::Ok();
+}
+
+Status PredictLaserLobe(const PhaseFitOptions& options, double beta, double g, double tau,
+                        double fit_board_distance_m, const LaserLobeImages& images, LobePrediction* prediction) {
+  *prediction = LobePrediction();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error(error);
+  if (!(beta > 0) || !(g > -1 && g < 1) || !(tau > 0) || !(fit_board_distance_m > 0)) {
+    return Status::Error("PredictLaserLobe: the fit's beta, g, tau and board distance must be > 0, (-1, 1), > 0, > 0");
+  }
+  bool flat = false, subtract = false;
+  THINSLAB_RETURN_IF_ERROR(
+      MeasureLaserRings(options, images, &prediction->beam_centre_m, &prediction->rings, &flat, &subtract));
+  const double d = images.board_distance_m;
+  prediction->board_distance_m = d;
+  // Eq. 8's beta holds 1 / d^2 (board irradiance of a point source at distance d / cos theta).
+  const double scale = beta * Sqr(fit_board_distance_m / d);
+  double sum_pm = 0, sum_pp = 0;
+  for (LaserRing& ring : prediction->rings) {
+    ring.model = scale * LaserLobeProfile(std::cos(ring.theta_rad), g, tau);
+    sum_pm += ring.model * ring.intensity;
+    sum_pp += Sqr(ring.model);
+  }
+  // The scale that fits the measured rings best in the figure below (least squares, unweighted
+  // as the relative RMS is): the shape compared alone.
+  const double best = sum_pp > 0 ? sum_pm / sum_pp : 0;
+  prediction->scale_ratio = best;
+  const double edges_deg[] = {0, 15, 30, 45, 60, 90};
+  for (int b = 0; b <= 5; ++b) {
+    LobePredictionBand band;
+    band.theta_min_deg = b < 5 ? edges_deg[b] : 0;
+    band.theta_max_deg = b < 5 ? edges_deg[b + 1] : 90;
+    double sum_meas2 = 0, sum_err2 = 0, sum_shape2 = 0, sum_var = 0;
+    for (const LaserRing& ring : prediction->rings) {
+      const double theta_deg = ring.theta_rad * 180 / kPi;
+      if (theta_deg < band.theta_min_deg || theta_deg >= band.theta_max_deg) continue;
+      ++band.rings;
+      sum_meas2 += Sqr(ring.intensity);
+      sum_err2 += Sqr(ring.model - ring.intensity);
+      sum_shape2 += Sqr(best * ring.model - ring.intensity);
+      sum_var += Sqr(ring.sigma);
+    }
+    if (band.rings == 0 || !(sum_meas2 > 0)) continue;
+    band.relative_rms = std::sqrt(sum_err2 / sum_meas2);
+    band.shape_relative_rms = std::sqrt(sum_shape2 / sum_meas2);
+    band.noise_relative_rms = std::sqrt(sum_var / sum_meas2);
+    prediction->bands.push_back(band);
+  }
+  if (prediction->rings.empty()) {
+    return Status::Error("PredictLaserLobe: no ring with >= " + std::to_string(options.min_ring_pixels) +
+                         " pixels in the measured lobe");
+  }
   return Status::Ok();
 }
 

@@ -103,6 +103,37 @@ std::vector<std::string> ContaminantCategories(double g, double sigma_g);
 bool FitEq8ToRings(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double* beta, double* g,
                    double* tau);
 
+// The rings of `images.lobe` (flat-fielded and clean-subtracted when options allow and the
+// capture has them) around the beam centre found in it, from the spike core out to
+// options.max_theta_deg; each a median with its standard error (Sec. 5.2).
+Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& images,
+                         Eigen::Vector2d* beam_centre_m, std::vector<LaserRing>* rings, bool* flat_fielded,
+                         bool* clean_subtracted);
+
+// What a fitted lobe predicts for a measured one (issue #23 section 4), per band of theta.
+struct LobePredictionBand {
+  double theta_min_deg = 0, theta_max_deg = 0;
+  int rings = 0;
+  // sqrt(sum (pred - meas)^2 / sum meas^2) over the band's rings; with the fit's own scale, and
+  // with the scale that fits the measured rings best (the shape alone: g and tau).
+  double relative_rms = -1, shape_relative_rms = -1;
+  double noise_relative_rms = -1;  // sqrt(sum sigma^2 / sum meas^2), sigma the rings' standard errors.
+};
+struct LobePrediction {
+  Eigen::Vector2d beam_centre_m = Eigen::Vector2d::Zero();  // Found in the measured lobe.
+  double board_distance_m = 0;
+  std::vector<LaserRing> rings;  // Measured; `model` holds the prediction.
+  double scale_ratio = 0;        // Best-fitting scale / the fit's scale (1: the fit's beta holds).
+  std::vector<LobePredictionBand> bands;  // 0-15, 15-30, 30-45, 45-60, 60-90 deg with rings, then all (0-90).
+};
+
+// Eq. 8 with the fit's beta, g and tau, made at `fit_board_distance_m`, against the rings of
+// `images.lobe` measured out to options.max_theta_deg at images.board_distance_m (beta scales
+// as the inverse square of the distance). The beam centre is the measured lobe's own: the
+// beam's position is geometry, not part of the fitted model.
+Status PredictLaserLobe(const PhaseFitOptions& options, double beta, double g, double tau,
+                        double fit_board_distance_m, const LaserLobeImages& images, LobePrediction* prediction);
+
 // Fails (Status) on bad options or input (beam not found, too few rings). A clean pane is not
 // an error: the summary says kNoMeasurableScattering.
 Status FitPhase(const PhaseFitOptions& options, const LaserLobeImages& images, std::vector<LaserRing>* rings,

@@ -16,6 +16,7 @@
 #include "core/math.h"
 #include "fit/cost_functions/shadow_attenuation_cost.h"
 #include "optics/dirty_glass.h"
+#include "fit/tau_prediction.h"
 #include "optics/shadow_map_model.h"
 
 namespace thinslab {
@@ -251,22 +252,8 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   for (size_t i = 0; i < n; ++i) tau[i] = tau_plain.data()[i];
   std::vector<double> scattered(n, 0.0);
   if (options.refine_scattering && options.layer_albedo > 0) {
-    BoardGeometry geometry;
-    geometry.distance_m = data.board_distance_m;
-    geometry.pixel_pitch_m = data.pixel_pitch_m;
-    geometry.max_angle_deg = options.kernel_max_angle_deg;
-    geometry.max_radius_px = static_cast<int>(std::ceil(std::hypot(w, h)));
-    std::vector<double> nodes;
-    for (double t : ScatterKernelBank::DefaultNodes()) {
-      nodes.push_back(t);
-      if (t >= options.tau_max) break;
-    }
-    const double albedo = options.layer_albedo, g = options.layer_g;
-    // Gu et al. 2007, Eq. 6 with mu'_i = 1, divided by tau (its limit at tau = 0).
-    const ScatterKernelBank bank(nodes, [&](double t, double mu) {
-      if (t < 1e-9) return albedo * HenyeyGreenstein(mu, g) / mu;
-      return LayerSingleScatterRadiance(t, mu, albedo, g) / t;
-    }, geometry);
+    const ScatterKernelBank bank =
+        LayerScatterKernelBank(options, data.board_distance_m, data.pixel_pitch_m, w, h);
     // Incident light proxy: the reference (E0 times the board-to-camera factor, which varies
     // slowly compared with the scattering kernel). Unmeasured pixels emit with the median.
     Image e0(w, h), tau_image(w, h);
@@ -412,6 +399,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
 
   // Outputs, counts and residuals.
   maps->tau = Image(w, h, {"tau", "tau_plain", "status", "sigma_tau"});
+  maps->reference = reference;
   double sum_sq = 0, sum_scatter = 0;
   for (size_t i = 0; i < n; ++i) {
     const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);

@@ -66,6 +66,9 @@ struct TauFitOptions {
 
 struct TauMaps {
   Image tau;        // Channels: tau, tau_plain, status, sigma_tau.
+  // I_clean the map was fitted with (DN/us, rectified): the reference frames, or the clean
+  // surface of reference "auto" / "flat". What a validation shadow is predicted from.
+  Image reference;
 };
 
 struct TauFitSummary {

@@ -679,9 +679,14 @@ std::vector<Case> Cases() {
       C("fit_unknown_model", "shadow", none, "fit holography {in}", {"holography"}),
 
       // ---- thinslab predict ----
-      C("predict_without_fit", "dots", none, "predict {in}", {"fit/dmf/summary.json"}),
+      C("predict_without_fit", "dots", none, "predict {in}", {"fit/dmf"}),
       C("predict_dots_text", "dots", none, "predict {in} --dots abc", {"--dots"}),
-      C("predict_fit_of_shadow_capture", "dots,shadow", none, "predict {in} --fit {shadow}", {"summary.json"}),
+      C("predict_fit_of_shadow_capture", "dots,shadow", none, "predict {in} --fit {shadow}", {"{shadow}", "not an output"}),
+      C("predict_dots_with_tau_fit", "shadow_fit", none, "predict {in} --dots 1,1", {"--dots", "fit dmf"}),
+      C("predict_tau_without_reference", "shadow_fit", SetFrame("reference", "/kind", "unused"), "predict {in}",
+        {"session.json", "reference"}),
+      C("predict_tau_other_grid", "shadow_fit", Set("/rig/sample/pixel_pitch_m", 1.6e-4), "predict {in}",
+        {"rig.sample", "tau.exr"}),
       C("predict_out_is_capture", "dots", none, "predict {in} --out {in}", {"{in}"}),
 
       // ---- thinslab calib camera ----

@@ -1,0 +1,184 @@
+// SPDX-License-Identifier: Apache-2.0
+// `thinslab predict` for shadow-map and laser-lobe captures (issue #23 section 4): the shadow a
+// `fit tau` map predicts at the capture's board distance, and the lobe a `fit phase` result
+// predicts, against the capture's frames (its validation frames when it has them). The capture
+// may be another one of the same sample (another board distance, another camera pose): the map
+// lives on the sample grid and Eq. 8 on angles, so both carry over.
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "app/layer_from_phase.h"
+#include "app/prediction_report.h"
+#include "calib/laser_lobe_preparation.h"
+#include "calib/shadow_map_preparation.h"
+#include "core/exr_io.h"
+#include "core/file.h"
+#include "core/math.h"
+#include "core/version.h"
+
+namespace thinslab {
+namespace {
+
+Status NumberField(const nlohmann::json& j, const std::string& path, const std::string& field, double* value) {
+  if (!j.contains(field) || !j[field].is_number()) return Status::Error(path + ": " + field + ": missing or not a number");
+  *value = j[field].get<double>();
+  if (!std::isfinite(*value)) return Status::Error(path + ": " + field + ": not finite");
+  return Status::Ok();
+}
+
+// The fit's grid from tau.exr's header attributes (docs/format.md 9.2).
+Status TauGrid(const Image& tau, const std::string& path, Eigen::Vector2d* region_min_m, double* pitch_m) {
+  const auto& a = tau.attributes();
+  const auto min_it = a.find("region_min_m"), pitch_it = a.find("pixel_pitch_m");
+  if (min_it == a.end() || pitch_it == a.end()) return Status::Error(path + ": region_min_m or pixel_pitch_m attribute missing");
+  const nlohmann::json min = nlohmann::json::parse(min_it->second, nullptr, false);
+  const nlohmann::json pitch = nlohmann::json::parse(pitch_it->second, nullptr, false);
+  if (!min.is_array() || min.size() != 2 || !min[0].is_number() || !min[1].is_number() || !pitch.is_number()) {
+    return Status::Error(path + ": region_min_m must be [x, y] and pixel_pitch_m a number");
+  }
+  *region_min_m = Eigen::Vector2d(min[0].get<double>(), min[1].get<double>());
+  *pitch_m = pitch.get<double>();
+  return Status::Ok();
+}
+
+// The fields every predict summary.json starts with.
+nlohmann::json PredictSummaryHead(const PredictRun& run, const std::string& kind, bool validation, int frames) {
+  return {{"format", "thinslab-predict-summary"}, {"kind", kind},       {"session", run.session_dir},
+          {"fit", run.fit_dir}, {"measured_frames", validation ? "validation" : "fitted"}, {"frames", frames}};
+}
+
+}  // namespace
+
+Status PredictShadowFromTau(const PredictRun& run, const Session& session, StagedDirectory* out) {
+  const std::string tau_path = JoinPath(run.fit_dir, "tau.exr"), summary_path = JoinPath(run.fit_dir, "summary.json");
+  Image tau_map;
+  THINSLAB_RETURN_IF_ERROR(ReadExr(tau_path, &tau_map));
+  for (const char* channel : {"tau", "tau_plain", "status", "sigma_tau"}) {
+    if (tau_map.ChannelIndex(channel) < 0) return Status::Error(tau_path + ": channel '" + channel + "' missing");
+  }
+  nlohmann::json fit_summary;
+  THINSLAB_RETURN_IF_ERROR(ReadJsonObjectFile(summary_path, "a `thinslab fit tau` output", &fit_summary));
+  if (!fit_summary.contains("layer") || !fit_summary["layer"].is_object()) {
+    return Status::Error(summary_path + ": layer: missing (a `thinslab fit tau` summary holds the layer it was fitted with)");
+  }
+  TauFitOptions layer;
+  const nlohmann::json& layer_json = fit_summary["layer"];
+  THINSLAB_RETURN_IF_ERROR(NumberField(layer_json, summary_path + ": layer", "albedo", &layer.layer_albedo));
+  THINSLAB_RETURN_IF_ERROR(NumberField(layer_json, summary_path + ": layer", "g", &layer.layer_g));
+  if (!layer_json.contains("refine_scattering") || !layer_json["refine_scattering"].is_boolean()) {
+    return Status::Error(summary_path + ": layer: refine_scattering: missing or not a boolean");
+  }
+  layer.refine_scattering = layer_json["refine_scattering"].get<bool>();
+  if (fit_summary.contains("model_options")) {  // Fits written before 2026-12-05 use the defaults.
+    THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary["model_options"], summary_path + ": model_options", "tau_max", &layer.tau_max));
+    THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary["model_options"], summary_path + ": model_options",
+                                         "kernel_max_angle_deg", &layer.kernel_max_angle_deg));
+  }
+  std::string error;
+  if (!layer.Check(&error)) return Status::Error(summary_path + ": " + error);
+
+  ShadowMapPreparationOptions preparation;
+  preparation.calibration = run.calibration;
+  RectifiedShadowMaps data;
+  THINSLAB_RETURN_IF_ERROR(PrepareShadowMaps(run.session_dir, session, preparation, &data));
+  Eigen::Vector2d fit_min;
+  double fit_pitch = 0;
+  THINSLAB_RETURN_IF_ERROR(TauGrid(tau_map, tau_path, &fit_min, &fit_pitch));
+  const std::string manifest = JoinPath(run.session_dir, kSessionManifestName);
+  if (tau_map.width() != data.shadow.width() || tau_map.height() != data.shadow.height() ||
+      (fit_min - data.region_min_m).norm() > 1e-9 || std::abs(fit_pitch - data.pixel_pitch_m) > 1e-12) {
+    return Status::Error(manifest + ": rig.sample: the capture's grid (region_min_m, region_max_m, pixel_pitch_m) differs "
+                         "from the map's in " + tau_path + "; predict needs the sample grid the map was fitted on");
+  }
+  if (data.reference.empty()) {
+    return Status::Error(manifest + ": frames: no usable 'reference' frames; predicting a shadow needs the clean board "
+                         "signal I_clean at the capture's board distance");
+  }
+  const bool validation = data.num_validation_frames > 0;
+  // The prediction inherits the reference's noise (pred = m I_clean; m ~ measured / I_clean).
+  Image prediction_variance(data.reference.width(), data.reference.height());
+  const Image& measured = validation ? data.validation_shadow : data.shadow;
+  for (size_t i = 0; i < prediction_variance.data().size(); ++i) {
+    const double r = data.reference.data()[i];
+    if (r > 0) prediction_variance.data()[i] = static_cast<float>(std::pow(measured.data()[i] / r, 2) * data.reference_variance.data()[i]);
+  }
+  Image shadow;
+  const std::vector<ShadowPredictionRegion> regions =
+      CompareShadowWithMaps(layer, tau_map, data, data.reference, prediction_variance, !validation, &shadow);
+  shadow.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
+  shadow.attributes()["source_session"] = run.session_dir;
+  shadow.attributes()["source_fit"] = run.fit_dir;
+  shadow.attributes()["units"] = "DN/us on the board grid of docs/format.md 9.1, black level and darks removed";
+  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out->path(), "shadow.exr"), shadow));
+
+  nlohmann::json j =
+      PredictSummaryHead(run, "shadow", validation, validation ? data.num_validation_frames : data.num_shadow_frames);
+  j["board_distance_m"] = data.board_distance_m;
+  j["layer"] = {{"albedo", layer.layer_albedo}, {"g", layer.layer_g}, {"refine_scattering", layer.refine_scattering}};
+  j["regions"] = ShadowRegionsJson(regions);
+  std::ostringstream txt;
+  txt << "thinslab predict: the shadow " << tau_path << " predicts at board distance " << data.board_distance_m * 1e3
+      << " mm, against the capture's " << (validation ? "validation" : "fitted") << " shadow frames"
+      << (validation ? "" : " (if the map was fitted on these frames, it reproduces them by construction)") << ":\n"
+      << ShadowRegionsText(regions);
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.json"), j.dump(2) + "\n"));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.txt"), txt.str()));
+  THINSLAB_RETURN_IF_ERROR(out->Commit());
+  std::cout << txt.str() << "wrote " << run.out_dir << "\n";
+  return Status::Ok();
+}
+
+Status PredictLobeFromPhase(const PredictRun& run, const Session& session, StagedDirectory* out) {
+  const std::string summary_path = JoinPath(run.fit_dir, "summary.json");
+  nlohmann::json fit_summary;
+  THINSLAB_RETURN_IF_ERROR(ReadJsonObjectFile(summary_path, "a `thinslab fit phase` output", &fit_summary));
+  if (!fit_summary.contains("result") || fit_summary["result"] != "success") {
+    return Status::Error(summary_path + ": result is not \"success\": the lobe fit gave no Eq. 8 parameters to predict with");
+  }
+  double beta = 0, g = 0, tau = 0, fit_distance = 0, max_theta_deg = 0;
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "beta", &beta));
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "g", &g));
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "tau", &tau));
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "board_distance_m", &fit_distance));
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "max_theta_deg", &max_theta_deg));
+  LaserLobePreparationOptions preparation;
+  preparation.calibration = run.calibration;
+  LaserLobeImages images;
+  THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(run.session_dir, session, preparation, &images));
+  const bool validation = !images.validation_lobe.empty();
+  if (validation) images.lobe = images.validation_lobe;
+  PhaseFitOptions options;
+  options.max_theta_auto = false;
+  options.max_theta_deg = max_theta_deg;
+  options.tau = tau;
+  LobePrediction prediction;
+  THINSLAB_RETURN_IF_ERROR(PredictLaserLobe(options, beta, g, tau, fit_distance, images, &prediction)
+                               .WithContext(run.session_dir));
+  std::ostringstream csv;
+  csv << "r_m,theta_deg,measured_dn_per_us,sigma,predicted_dn_per_us,pixels\n";
+  csv.precision(9);
+  for (const LaserRing& ring : prediction.rings) {
+    csv << ring.r_m << "," << ring.theta_rad * 180 / kPi << "," << ring.intensity << "," << ring.sigma << ","
+        << ring.model << "," << ring.pixels << "\n";
+  }
+  nlohmann::json j = PredictSummaryHead(run, "lobe", validation, images.lobe.num_frames);
+  j["fit_board_distance_m"] = fit_distance;
+  j["model"] = {{"beta", beta}, {"g", g}, {"tau", tau}, {"max_theta_deg", max_theta_deg}};
+  j["lobe"] = LobeBandsJson(prediction);
+  std::ostringstream txt;
+  txt << "thinslab predict: the lobe Eq. 8 predicts with g " << g << " (fitted at board distance " << fit_distance * 1e3
+      << " mm) at " << images.board_distance_m * 1e3 << " mm, against the capture's "
+      << (validation ? "validation" : "fitted") << " laser frames:\n"
+      << LobeBandsText(prediction);
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "lobe_rings.csv"), csv.str()));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.json"), j.dump(2) + "\n"));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.txt"), txt.str()));
+  THINSLAB_RETURN_IF_ERROR(out->Commit());
+  std::cout << txt.str() << "wrote " << run.out_dir << "\n";
+  return Status::Ok();
+}
+
+}  // namespace thinslab

@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: Apache-2.0
+// summary.json sections and text lines for predictions compared with measurements (issue #23
+// section 4): the validation reports of `fit tau` and `fit phase` and `thinslab predict`.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+#include "calib/session_calibration.h"
+#include "calib/shadow_map_preparation.h"
+#include "core/file.h"
+#include "core/session.h"
+#include "fit/phase_fit.h"
+#include "fit/tau_fit.h"
+#include "fit/tau_prediction.h"
+
+namespace thinslab {
+
+// The shadow `data.validation_shadow` (or, with `use_fitted_frames`, `data.shadow`) compared with
+// what `maps` predict at `data.board_distance_m` for the layer of `layer`, lit by `e0` (the
+// capture's clean board signal); the prediction's noise variance is `prediction_variance`.
+std::vector<ShadowPredictionRegion> CompareShadowWithMaps(const TauFitOptions& layer, const Image& tau_map,
+                                                          const RectifiedShadowMaps& data, const Image& e0,
+                                                          const Image& prediction_variance, bool use_fitted_frames,
+                                                          Image* predicted_shadow);
+
+nlohmann::json ShadowRegionsJson(const std::vector<ShadowPredictionRegion>& regions);
+// One line per region: "  thin (tau 0.05-0.5): relative RMS 0.012 (plain Eq. 7 0.020, noise 0.010) over 400 px".
+std::string ShadowRegionsText(const std::vector<ShadowPredictionRegion>& regions);
+
+nlohmann::json LobeBandsJson(const LobePrediction& prediction);
+std::string LobeBandsText(const LobePrediction& prediction);
+
+// `thinslab predict` (app/predict_command.cc) for the fits of shadow-map and laser-lobe captures
+// (app/predict_layer.cc): writes into `out` and commits it.
+struct PredictRun {
+  std::string session_dir, fit_dir, out_dir;
+  SessionCalibrationOptions calibration;
+};
+Status PredictShadowFromTau(const PredictRun& run, const Session& session, StagedDirectory* out);
+Status PredictLobeFromPhase(const PredictRun& run, const Session& session, StagedDirectory* out);
+
+}  // namespace thinslab
