@@ -36,6 +36,33 @@
 namespace thinslab {
 namespace {
 
+// Per region: predictions of validation or held-out dots (EvaluateValidationDots); an empty array
+// when there was nothing to predict.
+nlohmann::json DotPredictionRegionsJson(const std::vector<DmfValidationError>& errors) {
+  nlohmann::json regions = nlohmann::json::array();
+  if (std::all_of(errors.begin(), errors.end(), [](const DmfValidationError& e) { return e.points == 0; })) return regions;
+  for (const DmfValidationError& e : errors) {
+    regions.push_back({{"region", e.region},
+                       {"points", e.points},
+                       {"pairs", e.pairs},
+                       {"relative_rms", e.relative_rms},
+                       {"noise_relative_rms", e.noise_relative_rms}});
+  }
+  return regions;
+}
+
+std::string DotPredictionRegionsText(const std::vector<DmfValidationError>& errors) {
+  std::string out;
+  for (const DmfValidationError& e : errors) {
+    if (e.pairs == 0) continue;
+    char line[200];
+    std::snprintf(line, sizeof(line), "  %s: %.3f (%.3f) over %d points, %d pairs\n", e.region.c_str(), e.relative_rms,
+                  e.noise_relative_rms, e.points, e.pairs);
+    out += line;
+  }
+  return out;
+}
+
 Status ParsePixels(const std::string& text, std::vector<std::pair<int, int>>* pixels) {
   std::stringstream list(text);
   std::string item;
@@ -379,6 +406,10 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   constexpr double kValidationLobeFraction = 0.1;
   const std::vector<DmfValidationError> validation =
       EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction);
+  // The held-out grid dots (--hold-out), reported with or without the ladder.
+  const std::vector<DmfValidationError> held_out =
+      run.processing.hold_out ? EvaluateHeldOutDots(slices, maps, truth, kValidationLobeFraction)
+                              : std::vector<DmfValidationError>();
   std::map<std::string, int> counts;
   for (const DmfPointFit& f : maps.fits) ++counts[DmfStatusName(f.status)];
   const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - write_start).count();
@@ -388,6 +419,15 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["session"] = session_dir;
   j["grid"] = {maps.width, maps.height};
   j["dots"] = {processing.grid_nx, processing.grid_ny};
+  if (run.processing.hold_out) {
+    const HoldOutPattern& pattern = run.processing.hold_out_pattern;
+    j["hold_out"] = {{"pattern", pattern.kind},
+                     {"held_out_dots", std::count(slices.train.begin(), slices.train.end(), 0)}};
+    if (pattern.kind == "random") j["hold_out"].update({{"fraction", pattern.fraction}, {"seed", pattern.seed}});
+    if (pattern.kind == "blocks") j["hold_out"]["block"] = pattern.block;
+  } else {
+    j["hold_out"] = nullptr;
+  }
   j["ndf_resolution"] = n;
   j["eta"] = run.fit.point.eta;
   j["clustered"] = run.fit.cluster;
@@ -417,19 +457,12 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["exposure_check"] = ExposureCheckJson(processing.exposure_check, false);
   j["dot_geometry_source"] = processing.dot_geometry_source;
   j["noise"] = processing.noise.ToJson();
-  {
-    nlohmann::json v = {{"dots", slices.validation.num_dots()}, {"lobe_fraction", kValidationLobeFraction}};
-    nlohmann::json regions = nlohmann::json::array();
-    for (const DmfValidationError& e : validation) {
-      if (slices.validation.num_dots() == 0) break;
-      regions.push_back({{"region", e.region},
-                         {"points", e.points},
-                         {"pairs", e.pairs},
-                         {"relative_rms", e.relative_rms},
-                         {"noise_relative_rms", e.noise_relative_rms}});
-    }
-    v["regions"] = regions;
-    j["validation"] = v;
+  j["validation"] = {{"dots", slices.validation.num_dots()},
+                     {"lobe_fraction", kValidationLobeFraction},
+                     {"regions", DotPredictionRegionsJson(validation)}};
+  if (run.processing.hold_out) {
+    j["hold_out"]["lobe_fraction"] = kValidationLobeFraction;
+    j["hold_out"]["regions"] = DotPredictionRegionsJson(held_out);
   }
   j["calibration"] = CalibrationSummaryJson(processing.calibration);
   j["capture"] = CaptureSummaryJson(processing.capture);
@@ -487,14 +520,13 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   }
   if (slices.validation.num_dots() > 0) {
     txt << "validation dots: " << slices.validation.num_dots()
-        << " (not fitted); in-lobe relative RMS of the prediction (noise alone):\n";
-    for (const DmfValidationError& e : validation) {
-      if (e.pairs == 0) continue;
-      char line[200];
-      std::snprintf(line, sizeof(line), "  %s: %.3f (%.3f) over %d points, %d pairs\n", e.region.c_str(),
-                    e.relative_rms, e.noise_relative_rms, e.points, e.pairs);
-      txt << line;
-    }
+        << " (not fitted); in-lobe relative RMS of the prediction (noise alone):\n"
+        << DotPredictionRegionsText(validation);
+  }
+  if (run.processing.hold_out) {
+    txt << "held-out grid dots (" << run.processing.hold_out_pattern.kind
+        << " pattern); in-lobe relative RMS of the prediction (noise alone):\n"
+        << DotPredictionRegionsText(held_out);
   }
   if (has_truth) {
     txt << "against ground truth (medians per region; NDF L2 on one-sided regions, held-out with --hold-out):\n";
@@ -537,7 +569,14 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddDouble("max-k-s", &run.fit.point.max_k_s, "above this k_s: status unphysical");
   parser.AddDouble("cluster-fraction", &run.cluster_fraction, "k-means representatives per point; 0 = fit every point");
   parser.AddInt("neighbors", &run.fit.clustering.num_neighbors, "representatives per interpolated point (Eq. 20)");
-  parser.AddBool("hold-out", &run.processing.hold_out, "hold out every other dot from the fit");
+  parser.AddBool("hold-out", &run.processing.hold_out, "hold out dots from the fit (--hold-out-pattern)");
+  HoldOutPattern& pattern = run.processing.hold_out_pattern;
+  parser.AddString("hold-out-pattern", &pattern.kind,
+                   "checkerboard (every other dot), random (--hold-out-fraction, --hold-out-seed) or blocks "
+                   "(--hold-out-block x block tiles of dots in a checkerboard)");
+  parser.AddDouble("hold-out-fraction", &pattern.fraction, "random pattern: share of dots held out (0, 0.9]");
+  parser.AddInt("hold-out-block", &pattern.block, "blocks pattern: tile side in dots (1..64)");
+  parser.AddUint64("hold-out-seed", &pattern.seed, "random pattern: seed");
   parser.AddBool("refine-monitor-distance", &run.processing.dot_geometry.refine_distance,
                  "set the monitor distance d from the all-dots grid's scale (not with calib dots' rig.json)");
   // rig.json's dot radius and positions replace these when it holds calib dots' dot calibration.

@@ -153,15 +153,20 @@ std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
   return j.dump(2) + "\n";
 }
 
-std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
-                                                       const std::vector<DmfTruthRegion>& regions,
-                                                       double lobe_fraction) {
-  const DmfValidationDots& validation = slices.validation;
-  const int nv = validation.num_dots();
+namespace {
+
+// Predictions of the dots `use` selects (positions, values point-major with `stride` dots per
+// point, sigma may be empty) against their measurements, as EvaluateValidationDots describes.
+std::vector<DmfValidationError> EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
+                                                       const std::vector<DmfTruthRegion>& regions, double lobe_fraction,
+                                                       const std::vector<Eigen::Vector3d>& positions,
+                                                       const std::vector<float>& value, const std::vector<float>& sigma,
+                                                       const std::vector<uint8_t>& use) {
+  const int nd = static_cast<int>(positions.size());
   std::vector<DmfValidationError> out(1 + regions.size());
   out[0].region = "all";
   for (size_t r = 0; r < regions.size(); ++r) out[1 + r].region = regions[r].name;
-  if (nv == 0) return out;
+  if (std::none_of(use.begin(), use.end(), [](uint8_t u) { return u != 0; })) return out;
   const DmfNdfGrid grid(maps.ndf_resolution);
   std::vector<double> num(out.size(), 0), den(out.size(), 0), noise(out.size(), 0);
   for (int p = 0; p < slices.num_points(); ++p) {
@@ -170,20 +175,22 @@ std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices
     const Eigen::Vector3d x = slices.PointPosition(p);
     const Eigen::Vector3d entry = slices.LightEntryPoint(p);
     const Eigen::Vector3d o = SampleToOptical((slices.camera_centre - x).normalized());
-    const size_t base = static_cast<size_t>(p) * nv;
+    const size_t base = static_cast<size_t>(p) * nd;
     double peak = 0;
-    for (int v = 0; v < nv; ++v) peak = std::max(peak, validation.value[base + v] - fit.rho_d);
+    for (int v = 0; v < nd; ++v) {
+      if (use[v]) peak = std::max(peak, value[base + v] - fit.rho_d);
+    }
     if (!(peak > 0)) continue;
     double point_num = 0, point_den = 0, point_noise = 0;
     int point_pairs = 0;
-    for (int v = 0; v < nv; ++v) {
-      const double above = validation.value[base + v] - fit.rho_d;
-      if (above < lobe_fraction * peak) continue;
-      const Eigen::Vector3d i = SampleToOptical((validation.positions[v] - entry).normalized());
-      const double d = PredictDualMicrofacet(fit, grid, maps.eta, i, o) - validation.value[base + v];
+    for (int v = 0; v < nd; ++v) {
+      const double above = value[base + v] - fit.rho_d;
+      if (!use[v] || above < lobe_fraction * peak) continue;
+      const Eigen::Vector3d i = SampleToOptical((positions[v] - entry).normalized());
+      const double d = PredictDualMicrofacet(fit, grid, maps.eta, i, o) - value[base + v];
       point_num += d * d;
       point_den += above * above;
-      point_noise += Sqr(static_cast<double>(validation.sigma[base + v]));
+      if (!sigma.empty()) point_noise += Sqr(static_cast<double>(sigma[base + v]));
       ++point_pairs;
     }
     auto add = [&](size_t k) {
@@ -209,6 +216,24 @@ std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices
     out[k].noise_relative_rms = std::sqrt(noise[k] / den[k]);
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
+                                                       const std::vector<DmfTruthRegion>& regions,
+                                                       double lobe_fraction) {
+  const DmfValidationDots& validation = slices.validation;
+  return EvaluateDotPredictions(slices, maps, regions, lobe_fraction, validation.positions, validation.value,
+                                validation.sigma, std::vector<uint8_t>(validation.positions.size(), 1));
+}
+
+std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps,
+                                                    const std::vector<DmfTruthRegion>& regions, double lobe_fraction) {
+  std::vector<uint8_t> held_out(slices.train.size());
+  for (size_t q = 0; q < held_out.size(); ++q) held_out[q] = slices.train[q] == 0;
+  return EvaluateDotPredictions(slices, maps, regions, lobe_fraction, slices.dot_positions, slices.value,
+                                slices.sigma, held_out);
 }
 
 }  // namespace thinslab

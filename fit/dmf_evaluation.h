@@ -78,4 +78,10 @@ std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices
                                                        const std::vector<DmfTruthRegion>& regions,
                                                        double lobe_fraction = 0.1);
 
+// The same for the grid's held-out dots (DmfSliceSet::train 0; `fit dmf --hold-out`): reported
+// whenever dots are held out, with or without the model ladder.
+std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps,
+                                                    const std::vector<DmfTruthRegion>& regions,
+                                                    double lobe_fraction = 0.1);
+
 }  // namespace thinslab

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <random>
 #include <sstream>
 
 #include "core/math.h"
@@ -97,11 +98,37 @@ Status DmfSliceSet::Check() const {
   return Status::Ok();
 }
 
-std::vector<uint8_t> InterleavedTrainMask(int nx, int ny, bool hold_out) {
+bool HoldOutPattern::Check(std::string* error) const {
+  std::ostringstream e;
+  if (kind != "checkerboard" && kind != "random" && kind != "blocks") {
+    e << "HoldOutPattern::kind (--hold-out-pattern) = '" << kind << "': expected checkerboard, random or blocks";
+  } else if (!(fraction > 0 && fraction <= 0.9)) {
+    e << "HoldOutPattern::fraction (--hold-out-fraction) = " << fraction << ": expected (0, 0.9]";
+  } else if (block < 1 || block > 64) {
+    e << "HoldOutPattern::block (--hold-out-block) = " << block << ": expected 1..64";
+  }
+  *error = e.str();
+  return error->empty();
+}
+
+std::vector<uint8_t> HoldOutTrainMask(int nx, int ny, bool hold_out, const HoldOutPattern& pattern) {
   std::vector<uint8_t> train(static_cast<size_t>(nx) * ny, 1);
   if (!hold_out) return train;
+  // The generator's raw output (std::mt19937_64 is fully specified, the standard distributions
+  // are not): the same pattern on every platform.
+  std::mt19937_64 rng(pattern.seed);
   for (int y = 0; y < ny; ++y) {
-    for (int x = 0; x < nx; ++x) train[y * nx + x] = (x + y) % 2 == 0;
+    for (int x = 0; x < nx; ++x) {
+      bool fitted = true;
+      if (pattern.kind == "checkerboard") {
+        fitted = (x + y) % 2 == 0;
+      } else if (pattern.kind == "blocks") {
+        fitted = (x / pattern.block + y / pattern.block) % 2 == 0;
+      } else {
+        fitted = static_cast<double>(rng() >> 11) * 0x1.0p-53 >= pattern.fraction;
+      }
+      train[static_cast<size_t>(y) * nx + x] = fitted;
+    }
   }
   return train;
 }

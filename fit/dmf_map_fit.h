@@ -69,8 +69,21 @@ struct DmfSliceSet {
 // about x, so that light from the monitor (z < 0) arrives from +z and the camera lies on -z.
 inline Eigen::Vector3d SampleToOptical(const Eigen::Vector3d& v) { return Eigen::Vector3d(v.x(), -v.y(), -v.z()); }
 
-// Every other dot of the grid ((ix + iy) odd) held out, for prediction tests; or none.
-std::vector<uint8_t> InterleavedTrainMask(int nx, int ny, bool hold_out);
+// Which dots of the nx x ny grid a fit holds out to score its predictions (issue #23 section 4).
+struct HoldOutPattern {
+  // "checkerboard": (ix + iy) odd, every held-out dot between four fitted ones (interpolation);
+  // "random": each dot with probability `fraction`, drawn from `seed`; "blocks": block x block
+  // tiles of dots in a checkerboard of tiles, held-out dots up to block / 2 steps from a fitted
+  // one (extrapolation, where a model's lobe shape matters most).
+  std::string kind = "checkerboard";
+  double fraction = 0.5;
+  int block = 3;
+  uint64_t seed = 1;
+  bool Check(std::string* error) const;
+};
+
+// 1 = fitted, 0 = held out: all 1 without `hold_out`, else `pattern`.
+std::vector<uint8_t> HoldOutTrainMask(int nx, int ny, bool hold_out, const HoldOutPattern& pattern);
 
 struct DmfMapFitOptions {
   DmfPointFitOptions point;

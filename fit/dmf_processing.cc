@@ -115,6 +115,7 @@ bool DmfProcessingOptions::Check(std::string* error) const {
   else if (supersample < 1 || supersample > 8) e << "supersample must be in [1, 8], got " << supersample;
   else if (!(glass_thickness_m <= 0.05)) e << "glass_thickness_m (--glass-thickness-mm) must be <= 50 mm";
   else if (!(eta == 0 || (eta > 1 && eta <= 4))) e << "eta must be 0 (the manifest's) or in (1, 4], got " << eta;
+  else if (std::string pattern_error; !hold_out_pattern.Check(&pattern_error)) e << pattern_error;
   *error = e.str();
   return error->empty();
 }
@@ -315,7 +316,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   const int np = slices->num_points(), nd = static_cast<int>(displayed.size());
   slices->value.assign(static_cast<size_t>(np) * nd, 0.0f);
   slices->sigma.assign(static_cast<size_t>(np) * nd, 0.0f);
-  slices->train = InterleavedTrainMask(nx, ny, options.hold_out);
+  slices->train = HoldOutTrainMask(nx, ny, options.hold_out, options.hold_out_pattern);
   slices->point_status.assign(np, static_cast<uint8_t>(DmfStatus::kOk));
   report->slice_bytes = (slices->value.size() + slices->sigma.size()) * sizeof(float);
 

@@ -34,7 +34,8 @@ struct DmfProcessingOptions {
   // Radius of a displayed dot [monitor px] (A of Eq. 12, L_q, the detection windows); 0 = the
   // manifest's rig.monitor.dot_radius_px, else 2 (ResolveDotRadiusPx).
   double dot_radius_px = 0;
-  bool hold_out = false;       // Hold out every other dot ((ix + iy) odd) from the fit.
+  bool hold_out = false;       // Hold out dots from the fit, in `hold_out_pattern`.
+  HoldOutPattern hold_out_pattern;
   // A point whose dot frames saturated in every exposure for more than this fraction of its
   // in-lobe dots is flagged saturated; more than `max_saturated_points` of such points is an error.
   double max_saturated_dots = 0.02;

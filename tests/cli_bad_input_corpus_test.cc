@@ -676,6 +676,11 @@ std::vector<Case> Cases() {
       C("fit_dmf_out_is_frames", "dots", none, "fit dmf {in} --pitch-mm 8 --out {in}/frames", {"{in}/frames"}),
       C("fit_dmf_out_is_manifest", "dots", none, "fit dmf {in} --pitch-mm 8 --out {in}/session.json",
         {"{in}/session.json"}),
+      C("fit_dmf_hold_out_pattern_unknown", "dots", none,
+        "fit dmf {in} --pitch-mm 8 --hold-out true --hold-out-pattern stripes", {"--hold-out-pattern", "stripes"}),
+      C("fit_dmf_hold_out_fraction_1", "dots", none,
+        "fit dmf {in} --pitch-mm 8 --hold-out true --hold-out-pattern random --hold-out-fraction 1",
+        {"--hold-out-fraction"}),
       C("fit_unknown_model", "shadow", none, "fit holography {in}", {"holography"}),
 
       // ---- thinslab predict ----

@@ -4,7 +4,8 @@
 // removed from the manifest), `info` counts them, and `fit dmf` reports how well its maps
 // predict them per region with the noise level beside it; `thinslab predict` images them in the
 // camera from the fit's outputs alone; both figures can fail: validation dots recorded at the
-// wrong monitor position read several times worse.
+// wrong monitor position read several times worse. Held-out grid dots in three patterns are
+// reported whenever dots are held out.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -114,6 +115,28 @@ TEST(CliValidationDots, ReportedPerRegionNeverFittedAndAbleToFail) {
   const double shifted_camera = MedianPredictionError(dir / "predict_shifted/summary.json", 40);
   std::printf("thinslab predict, dots recorded 2.5 mm off: %.3f\n", shifted_camera);
   EXPECT_GT(shifted_camera, 1.4 * camera_error);
+
+  // Hold-out patterns beyond the checkerboard, reported without --ladder: tiles of 3 x 3 dots
+  // held out leave whole patches of the lobe unmeasured, so their prediction (extrapolation)
+  // reads worse than every other dot's (interpolation); a random 30 % holds out about 120.
+  double held_out_error[2];
+  const char* patterns[2] = {"checkerboard", "blocks"};
+  for (int k = 0; k < 2; ++k) {
+    const std::string out = dir / (std::string("hold_out_") + patterns[k]);
+    RunThinslabOk("fit dmf " + capture + " --pitch-mm 4 --hold-out true --hold-out-pattern " + patterns[k] + " --out " + out);
+    const nlohmann::json hold_out = ReadJsonFile(out + "/summary.json")["hold_out"];
+    EXPECT_EQ(hold_out["pattern"], patterns[k]);
+    EXPECT_EQ(hold_out["held_out_dots"], k == 0 ? 200 : 198) << hold_out.dump();  // 20 x 20 grid.
+    ASSERT_FALSE(hold_out["regions"].empty()) << hold_out.dump();
+    held_out_error[k] = hold_out["regions"][0]["relative_rms"].get<double>();
+    std::printf("held-out %s: in-lobe relative RMS %.3f\n", patterns[k], held_out_error[k]);
+  }
+  EXPECT_GT(held_out_error[1], held_out_error[0]);
+  const std::string random_out = dir / "hold_out_random";
+  RunThinslabOk("fit dmf " + capture + " --pitch-mm 4 --hold-out true --hold-out-pattern random --hold-out-fraction 0.3 "
+                "--out " + random_out);
+  const int random_held_out = ReadJsonFile(random_out + "/summary.json")["hold_out"]["held_out_dots"].get<int>();
+  EXPECT_NEAR(random_held_out, 120, 30);
 }
 
 }  // namespace
