@@ -12,6 +12,7 @@
 
 #include "app/layer_from_phase.h"
 #include "app/prediction_report.h"
+#include "calib/board_rectification.h"
 #include "calib/laser_lobe_preparation.h"
 #include "calib/shadow_map_preparation.h"
 #include "core/exr_io.h"
@@ -50,6 +51,68 @@ nlohmann::json PredictSummaryHead(const PredictRun& run, const std::string& kind
           {"fit", run.fit_dir}, {"measured_frames", validation ? "validation" : "fitted"}, {"frames", frames}};
 }
 
+// The board-grid prediction `board` (CompareShadowWithMaps's image) imaged in the capture's
+// camera: each camera pixel takes the mean transmission ratio of the map pixels its footprint
+// covers on the board (kCameraSubsamples^2 sub-pixel rays, as the pixel integrates the board)
+// times its own clean signal, against its own averaged frames (nothing resampled).
+constexpr int kCameraSubsamples = 4;
+std::vector<ShadowPredictionRegion> ImageShadowInCamera(const Image& tau_map, const RectifiedShadowMaps& data,
+                                                        const Image& board, Image* camera_image) {
+  BoardGrid grid;
+  grid.grid_min_m = data.region_min_m;
+  grid.pixel_pitch_m = data.pixel_pitch_m;
+  grid.width_px = tau_map.width();
+  grid.height_px = tau_map.height();
+  grid.plane_z_m = -data.board_distance_m;
+  const int n2 = kCameraSubsamples * kCameraSubsamples;
+  const std::vector<int> cells = MapPixelOfCameraPixels(data.camera, grid, kCameraSubsamples);
+  const int w = data.camera.width_px, h = data.camera.height_px;
+  const int tau_c = tau_map.ChannelIndex("tau"), plain_c = tau_map.ChannelIndex("tau_plain"),
+            sigma_c = tau_map.ChannelIndex("sigma_tau");
+  Image predicted(w, h), plain(w, h), measured = data.camera_shadow, variance(w, h), tau(w, h), sigma_tau(w, h);
+  std::vector<uint8_t> valid(static_cast<size_t>(w) * h, 0);
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const size_t k = static_cast<size_t>(v) * w + u;
+      const double clean = data.camera_reference.data()[k];
+      if (!(clean > 0) || data.camera_shadow_saturated.data()[k] > 0) continue;
+      double ratio_sum = 0, plain_sum = 0, tau_sum = 0, sigma_sum = 0;
+      bool all_valid = true;
+      for (int s = 0; s < n2 && all_valid; ++s) {
+        const int cell = cells[k * n2 + s];
+        const int cx = cell % grid.width_px, cy = cell / grid.width_px;
+        all_valid = cell >= 0 && board.at(cx, cy, 4) > 0 && data.reference.data()[cell] > 0;
+        if (!all_valid) break;
+        ratio_sum += board.at(cx, cy, 0) / data.reference.data()[cell];
+        plain_sum += std::exp(-tau_map.at(cx, cy, plain_c));
+        tau_sum += tau_map.at(cx, cy, tau_c);
+        sigma_sum += tau_map.at(cx, cy, sigma_c);
+      }
+      if (!all_valid) continue;
+      valid[k] = 1;
+      predicted.data()[k] = static_cast<float>(ratio_sum / n2 * clean);
+      plain.data()[k] = static_cast<float>(plain_sum / n2 * clean);
+      const double ratio = measured.data()[k] / clean;
+      variance.data()[k] = static_cast<float>(data.camera_shadow_variance.data()[k] +
+                                              ratio * ratio * data.camera_reference_variance.data()[k]);
+      tau.data()[k] = static_cast<float>(tau_sum / n2);
+      sigma_tau.data()[k] = static_cast<float>(sigma_sum / n2);
+    }
+  }
+  *camera_image = Image(w, h, {"predicted", "predicted_plain", "measured", "variance", "valid"});
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const size_t k = static_cast<size_t>(v) * w + u;
+      camera_image->at(u, v, 0) = predicted.data()[k];
+      camera_image->at(u, v, 1) = plain.data()[k];
+      camera_image->at(u, v, 2) = measured.data()[k];
+      camera_image->at(u, v, 3) = variance.data()[k];
+      camera_image->at(u, v, 4) = valid[k];
+    }
+  }
+  return CompareShadowPrediction(predicted, plain, measured, variance, tau, sigma_tau, valid);
+}
+
 }  // namespace
 
 Status PredictShadowFromTau(const PredictRun& run, const Session& session, StagedDirectory* out) {
@@ -82,6 +145,7 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
 
   ShadowMapPreparationOptions preparation;
   preparation.calibration = run.calibration;
+  preparation.keep_camera_frames = true;
   RectifiedShadowMaps data;
   THINSLAB_RETURN_IF_ERROR(PrepareShadowMaps(run.session_dir, session, preparation, &data));
   Eigen::Vector2d fit_min;
@@ -113,17 +177,25 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
   shadow.attributes()["source_fit"] = run.fit_dir;
   shadow.attributes()["units"] = "DN/us on the board grid of docs/format.md 9.1, black level and darks removed";
   THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out->path(), "shadow.exr"), shadow));
+  Image camera_shadow;
+  const std::vector<ShadowPredictionRegion> camera_regions = ImageShadowInCamera(tau_map, data, shadow, &camera_shadow);
+  camera_shadow.attributes() = shadow.attributes();
+  camera_shadow.attributes()["units"] = "DN/us in the capture's camera pixels, black level and darks removed";
+  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out->path(), "shadow_camera.exr"), camera_shadow));
 
   nlohmann::json j =
       PredictSummaryHead(run, "shadow", validation, validation ? data.num_validation_frames : data.num_shadow_frames);
   j["board_distance_m"] = data.board_distance_m;
   j["layer"] = {{"albedo", layer.layer_albedo}, {"g", layer.layer_g}, {"refine_scattering", layer.refine_scattering}};
   j["regions"] = ShadowRegionsJson(regions);
+  j["camera_regions"] = ShadowRegionsJson(camera_regions);
   std::ostringstream txt;
   txt << "thinslab predict: the shadow " << tau_path << " predicts at board distance " << data.board_distance_m * 1e3
       << " mm, against the capture's " << (validation ? "validation" : "fitted") << " shadow frames"
       << (validation ? "" : " (if the map was fitted on these frames, it reproduces them by construction)") << ":\n"
-      << ShadowRegionsText(regions);
+      << ShadowRegionsText(regions) << "in the camera's pixels (each the mean over its footprint on the board; this adds what the map's pitch "
+         "cannot resolve, also at the fitted geometry):\n"
+      << ShadowRegionsText(camera_regions);
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.json"), j.dump(2) + "\n"));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.txt"), txt.str()));
   THINSLAB_RETURN_IF_ERROR(out->Commit());

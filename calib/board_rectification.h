@@ -31,6 +31,11 @@ struct BoardGrid {
   bool average_footprint = true;
 };
 
+// The inverse direction: for each camera pixel (row-major) and each of its n x n sub-pixel
+// rays (n = `subsamples`, row-major inside the pixel), the index of the map pixel the ray meets
+// on the grid's plane, or -1 (behind the camera, or off the grid): entry (k n + s) n + t.
+std::vector<int> MapPixelOfCameraPixels(const CameraInfo& camera, const BoardGrid& grid, int subsamples = 1);
+
 // Precomputed (camera pixel, weight) lists per map pixel: the share of the map pixel's in-image
 // sub-samples that fall in each camera pixel.
 class BoardRectifier {

@@ -50,6 +50,33 @@ BoardGrid Grid() {
   return grid;
 }
 
+// The inverse map: a nadir camera pixel covering 2 x 2 map pixels sends its 2 x 2 sub-pixel rays
+// to four different map pixels, every map pixel is hit exactly once, and the pixels beside the
+// grid hit none.
+TEST(MapPixelOfCameraPixels, SubPixelRaysTileTheGridOnce) {
+  const CameraInfo camera = NadirCamera(2 * kMapPitchM);
+  const std::vector<int> cells = MapPixelOfCameraPixels(camera, Grid(), 2);
+  ASSERT_EQ(cells.size(), 32u * 32u * 4u);
+  std::vector<int> hits(64, 0);
+  int camera_pixels_on_grid = 0;
+  for (int k = 0; k < 32 * 32; ++k) {
+    std::set<int> distinct;
+    for (int s = 0; s < 4; ++s) {
+      const int c = cells[k * 4 + s];
+      if (c < 0) continue;
+      ASSERT_LT(c, 64);
+      ++hits[c];
+      distinct.insert(c);
+    }
+    if (!distinct.empty()) {
+      ++camera_pixels_on_grid;
+      EXPECT_EQ(distinct.size(), 4u) << "camera pixel " << k;
+    }
+  }
+  EXPECT_EQ(camera_pixels_on_grid, 16);  // The 8 mm grid is 4 x 4 camera pixels.
+  for (int c = 0; c < 64; ++c) EXPECT_EQ(hits[c], 1) << "map pixel " << c;
+}
+
 TEST(BoardRectifier, VarianceOfOneCameraPixelIsItsOwn) {
   const BoardRectifier rectifier(NadirCamera(2 * kMapPitchM), Grid());
   const Image variance(32, 32, 3.0f);

@@ -205,6 +205,19 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
     maps->validation_shadow = rectifier.Rectify(validation.mean_dn_per_us);
     maps->validation_shadow_variance = rectifier.RectifyVariance(validation.variance);
     maps->validation_saturated = rectifier.RectifyAny(validation.saturated);
+    if (options.keep_camera_frames) {
+      shadow = std::move(validation);
+    }
+  }
+  if (options.keep_camera_frames) {
+    maps->camera_reference = reference.mean_dn_per_us;
+    maps->camera_reference_variance = reference.variance;
+    maps->camera_shadow = std::move(shadow.mean_dn_per_us);
+    maps->camera_shadow_variance = std::move(shadow.variance);
+    maps->camera_shadow_saturated = std::move(shadow.saturated);
+    for (size_t i = 0; i < reference.saturated.data().size(); ++i) {
+      if (reference.saturated.data()[i] > 0) maps->camera_shadow_saturated.data()[i] = 1;
+    }
   }
   if (!maps->calibration.flat_field.empty()) {
     // A map pixel touching an invalid flat-field pixel gets no flat (0).

@@ -26,6 +26,9 @@ struct ShadowMapPreparationOptions {
   // Also load and rectify SESSION/calib/flat_field.exr (into `flat`), for `fit tau --reference
   // flat`; off, the file is not read (a flat field of another camera cannot fail other fits).
   bool load_flat_field = false;
+  // Also keep the averaged frames in camera pixels (RectifiedShadowMaps::camera_*), for
+  // predictions imaged in the camera (`thinslab predict`).
+  bool keep_camera_frames = false;
 
   bool Check(std::string* error) const;
 };
@@ -40,6 +43,10 @@ struct RectifiedShadowMaps {
   Image validation_shadow, validation_shadow_variance;
   Image validation_saturated;  // 1 where a contributing raw validation pixel saturated.
   Image saturated;           // 1 where a contributing raw pixel saturated in any frame.
+  // With keep_camera_frames: the averaged frames before rectification (camera pixels, DN/us),
+  // the measured shadow's variance and saturation (the validation frames' when the capture has
+  // them, else the fitted ones'; saturation also where the reference saturated).
+  Image camera_reference, camera_reference_variance, camera_shadow, camera_shadow_variance, camera_shadow_saturated;
   Image outside;             // 1 where the board point is outside the camera image.
   // calib/flat_field.exr rectified (unitless, 0 where invalid); empty when the session has none.
   Image flat;

@@ -104,6 +104,19 @@ TEST(CliValidationShadowLobe, TauMapsPredictValidationFramesAndOtherBoardDistanc
   ASSERT_TRUE(ReadExr(dir / "predict/shadow.exr", &shadow).ok());
   EXPECT_GE(shadow.ChannelIndex("predicted"), 0);
   EXPECT_GE(shadow.ChannelIndex("measured"), 0);
+  // The same in the capture's camera pixels (each the mean over its footprint): the map's pitch
+  // adds its own error, and plain Eq. 7 still reads clearly worse.
+  Image camera_shadow;
+  ASSERT_TRUE(ReadExr(dir / "predict/shadow_camera.exr", &camera_shadow).ok());
+  EXPECT_EQ(camera_shadow.width(), 320);
+  EXPECT_GE(camera_shadow.ChannelIndex("valid"), 0);
+  for (const char* name : {"thin", "thick"}) {
+    const nlohmann::json& r = Region(predicted["camera_regions"], name);
+    std::printf("predict at 10 mm in camera pixels, %s: relative RMS %.4f (plain Eq. 7 %.4f)\n", name,
+                r["relative_rms"].get<double>(), r["plain_relative_rms"].get<double>());
+    EXPECT_GT(r["pixels"].get<int>(), 100) << r.dump();
+    EXPECT_GT(r["plain_relative_rms"].get<double>(), 1.5 * r["relative_rms"].get<double>()) << r.dump();
+  }
 
   RunThinslabOk("fit tau " + a + " --refine false --out " + (dir / "plain_fit"));
   RunThinslabOk("predict " + b + " --fit " + (dir / "plain_fit") + " --out " + (dir / "predict_plain"));
