@@ -19,6 +19,7 @@
 #include "core/file.h"
 #include "core/math.h"
 #include "core/version.h"
+#include "optics/dirty_glass.h"
 
 namespace thinslab {
 namespace {
@@ -111,6 +112,65 @@ std::vector<ShadowPredictionRegion> ImageShadowInCamera(const Image& tau_map, co
     }
   }
   return CompareShadowPrediction(predicted, plain, measured, variance, tau, sigma_tau, valid);
+}
+
+// The lobe `prediction` holds imaged in the capture's camera: per camera pixel, the board point
+// its ray meets, Eq. 8 at its angle from the beam centre, taken back from the rings' units
+// (flat-fielded at the beam centre, clean glass subtracted) to the pixel's own:
+//   predicted = ring model * flat(u) / flat(centre) + clean(u),
+// over the pixels between the spike core and the outermost angle, against the HDR merge.
+struct LobeCameraError {
+  int64_t pixels = 0;
+  double relative_rms = -1, noise_relative_rms = -1;
+};
+LobeCameraError ImageLobeInCamera(const LaserLobeImages& images, const LobePrediction& prediction, double g, double tau,
+                                  Image* camera_image) {
+  const LaserRingGeometry& ring = prediction.geometry;
+  BoardGrid grid;
+  grid.grid_min_m = images.grid_min_m;
+  grid.pixel_pitch_m = images.pixel_pitch_m;
+  grid.width_px = images.outside.width();
+  grid.height_px = images.outside.height();
+  grid.plane_z_m = -images.board_distance_m;
+  const std::vector<int> cells = MapPixelOfCameraPixels(images.camera, grid);
+  const int w = images.camera.width_px, h = images.camera.height_px;
+  *camera_image = Image(w, h, {"predicted", "measured", "variance", "valid"});
+  LobeCameraError error;
+  double sum_err2 = 0, sum_meas2 = 0, sum_var = 0;
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const size_t k = static_cast<size_t>(v) * w + u;
+      Eigen::Vector2d q;  // The board point the pixel's centre sees (the board region only).
+      if (cells[k] < 0 || !CameraRayOnPlane(images.camera, Eigen::Vector2d(u + 0.5, v + 0.5), grid.plane_z_m, &q)) continue;
+      if (images.lobe.camera_all_saturated.data()[k] > 0) continue;
+      if (ring.clean_subtracted && images.clean.camera_all_saturated.data()[k] > 0) continue;
+      const double r = (q - ring.beam_centre_m).norm();
+      if (r < ring.r_core_m || r >= ring.r_max_m) continue;
+      const double flat = ring.flat_fielded ? images.flat.camera_radiance.data()[k] / ring.flat_at_centre : 1.0;
+      if (!(flat > 0)) continue;
+      const double cos_theta = std::cos(std::atan(r / images.board_distance_m));
+      double predicted = prediction.scale * LaserLobeProfile(cos_theta, g, tau) * flat;
+      double variance = images.lobe.camera_variance.data()[k];
+      if (ring.clean_subtracted) {
+        predicted += images.clean.camera_radiance.data()[k];
+        variance += images.clean.camera_variance.data()[k];
+      }
+      const double measured = images.lobe.camera_radiance.data()[k];
+      camera_image->at(u, v, 0) = static_cast<float>(predicted);
+      camera_image->at(u, v, 1) = static_cast<float>(measured);
+      camera_image->at(u, v, 2) = static_cast<float>(variance);
+      camera_image->at(u, v, 3) = 1;
+      ++error.pixels;
+      sum_err2 += Sqr(predicted - measured);
+      sum_meas2 += Sqr(measured);
+      sum_var += variance;
+    }
+  }
+  if (sum_meas2 > 0) {
+    error.relative_rms = std::sqrt(sum_err2 / sum_meas2);
+    error.noise_relative_rms = std::sqrt(sum_var / sum_meas2);
+  }
+  return error;
 }
 
 }  // namespace
@@ -218,6 +278,7 @@ Status PredictLobeFromPhase(const PredictRun& run, const Session& session, Stage
   THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "max_theta_deg", &max_theta_deg));
   LaserLobePreparationOptions preparation;
   preparation.calibration = run.calibration;
+  preparation.keep_camera_hdr = true;
   LaserLobeImages images;
   THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(run.session_dir, session, preparation, &images));
   const bool validation = !images.validation_lobe.empty();
@@ -240,11 +301,26 @@ Status PredictLobeFromPhase(const PredictRun& run, const Session& session, Stage
   j["fit_board_distance_m"] = fit_distance;
   j["model"] = {{"beta", beta}, {"g", g}, {"tau", tau}, {"max_theta_deg", max_theta_deg}};
   j["lobe"] = LobeBandsJson(prediction);
+  Image camera_image;
+  const LobeCameraError camera = ImageLobeInCamera(images, prediction, g, tau, &camera_image);
+  j["lobe_camera"] = {{"pixels", camera.pixels},
+                      {"relative_rms", camera.relative_rms},
+                      {"noise_relative_rms", camera.noise_relative_rms}};
+  camera_image.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
+  camera_image.attributes()["source_session"] = run.session_dir;
+  camera_image.attributes()["source_fit"] = run.fit_dir;
+  camera_image.attributes()["units"] = "DN/us in the capture's camera pixels (the HDR merge's radiance)";
+  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out->path(), "lobe_camera.exr"), camera_image));
   std::ostringstream txt;
   txt << "thinslab predict: the lobe Eq. 8 predicts with g " << g << " (fitted at board distance " << fit_distance * 1e3
       << " mm) at " << images.board_distance_m * 1e3 << " mm, against the capture's "
       << (validation ? "validation" : "fitted") << " laser frames:\n"
       << LobeBandsText(prediction);
+  char camera_line[200];
+  std::snprintf(camera_line, sizeof(camera_line),
+                "in the camera's pixels (core to outermost angle): relative RMS %.4f (noise alone %.4f) over %lld px\n",
+                camera.relative_rms, camera.noise_relative_rms, static_cast<long long>(camera.pixels));
+  txt << camera_line;
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "lobe_rings.csv"), csv.str()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.json"), j.dump(2) + "\n"));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.txt"), txt.str()));

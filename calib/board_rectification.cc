@@ -110,21 +110,28 @@ Image BoardRectifier::RectifyAny(const Image& mask) const {
   return out;
 }
 
+bool CameraRayOnPlane(const CameraInfo& camera, const Eigen::Vector2d& pixel, double plane_z_m, Eigen::Vector2d* xy) {
+  const Rigid3d sample_from_cam = camera.cam_from_sample.Inverse();
+  const Eigen::Vector3d eye = sample_from_cam.translation;
+  const Eigen::Vector3d ray = sample_from_cam.rotation * PixelToCameraRay(camera, pixel);
+  if (!(std::abs(ray.z()) > 1e-12)) return false;
+  const double along = (plane_z_m - eye.z()) / ray.z();
+  if (!(along > 0)) return false;
+  *xy = (eye + along * ray).head<2>();
+  return true;
+}
+
 std::vector<int> MapPixelOfCameraPixels(const CameraInfo& camera, const BoardGrid& grid, int subsamples) {
   const int n = std::max(1, subsamples);
   std::vector<int> cell(static_cast<size_t>(camera.width_px) * camera.height_px * n * n, -1);
-  const Rigid3d sample_from_cam = camera.cam_from_sample.Inverse();
-  const Eigen::Vector3d eye = sample_from_cam.translation;
   for (int v = 0; v < camera.height_px; ++v) {
     for (int u = 0; u < camera.width_px; ++u) {
       for (int s = 0; s < n; ++s) {
         for (int t = 0; t < n; ++t) {
-          const Eigen::Vector2d pixel(u + (t + 0.5) / n, v + (s + 0.5) / n);
-          const Eigen::Vector3d ray = sample_from_cam.rotation * PixelToCameraRay(camera, pixel);
-          if (!(std::abs(ray.z()) > 1e-12)) continue;
-          const double along = (grid.plane_z_m - eye.z()) / ray.z();
-          if (!(along > 0)) continue;
-          const Eigen::Vector3d x = eye + along * ray;
+          Eigen::Vector2d x;
+          if (!CameraRayOnPlane(camera, Eigen::Vector2d(u + (t + 0.5) / n, v + (s + 0.5) / n), grid.plane_z_m, &x)) {
+            continue;
+          }
           const double col = std::floor((x.x() - grid.grid_min_m.x()) / grid.pixel_pitch_m);
           const double row = std::floor((x.y() - grid.grid_min_m.y()) / grid.pixel_pitch_m);
           if (!(col >= 0 && row >= 0 && col < grid.width_px && row < grid.height_px)) continue;

@@ -31,6 +31,10 @@ struct BoardGrid {
   bool average_footprint = true;
 };
 
+// Where the ray through camera pixel coordinate `pixel` (centres at +0.5) meets the plane
+// z = plane_z_m of the sample frame: false when it runs parallel or the plane is behind the camera.
+bool CameraRayOnPlane(const CameraInfo& camera, const Eigen::Vector2d& pixel, double plane_z_m, Eigen::Vector2d* xy);
+
 // The inverse direction: for each camera pixel (row-major) and each of its n x n sub-pixel
 // rays (n = `subsamples`, row-major inside the pixel), the index of the map pixel the ray meets
 // on the grid's plane, or -1 (behind the camera, or off the grid): entry (k n + s) n + t.

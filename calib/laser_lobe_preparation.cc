@@ -34,7 +34,7 @@ namespace {
 Status MergeAndRectify(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                        const CameraResponse* response, const std::vector<const FrameRecord*>& frames,
                        double read_noise_dn, const FrameNoiseModel& noise, const BoardRectifier& rectifier,
-                       BoardHdr* out) {
+                       bool keep_camera, BoardHdr* out) {
   if (frames.empty()) return Status::Ok();
   std::vector<Image> images(frames.size()), variances(frames.size());
   std::vector<HdrFrame> hdr_frames;
@@ -62,6 +62,11 @@ Status MergeAndRectify(const std::string& session_dir, const Session& session, c
   out->radiance = rectifier.Rectify(hdr.radiance);
   out->variance = rectifier.RectifyVariance(hdr.variance);  // Of the board pixel's mean.
   out->all_saturated = rectifier.RectifyAny(hdr.all_saturated);
+  if (keep_camera) {
+    out->camera_radiance = std::move(hdr.radiance);
+    out->camera_variance = std::move(hdr.variance);
+    out->camera_all_saturated = std::move(hdr.all_saturated);
+  }
   out->num_frames = static_cast<int>(frames.size());
   out->num_exposures = static_cast<int>(exposures.size());
   return Status::Ok();
@@ -145,13 +150,14 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
   images->read_noise_dn = read_noise;
   const FrameNoiseModel& noise = images->noise;
   THINSLAB_RETURN_IF_ERROR(
-      MergeAndRectify(session_dir, session, camera, response, lobe, read_noise, noise, rectifier, &images->lobe));
+      MergeAndRectify(session_dir, session, camera, response, lobe, read_noise, noise, rectifier,
+                      options.keep_camera_hdr, &images->lobe));
   THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response,
                                            of_camera(session.UsableFrames("laser", "clean")), read_noise, noise,
-                                           rectifier, &images->clean));
+                                           rectifier, options.keep_camera_hdr, &images->clean));
   THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response,
                                            of_camera(session.UsableFrames("flat")), read_noise, noise, rectifier,
-                                           &images->flat));
+                                           options.keep_camera_hdr, &images->flat));
   const auto validation = of_camera(session.ValidationFrames("laser", "contaminated"));
   std::set<double> validation_exposures;
   for (const auto* f : validation) validation_exposures.insert(f->exposure_time_us);
@@ -161,7 +167,7 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
                          "); a validation lobe needs an exposure bracket like the fitted one");
   }
   THINSLAB_RETURN_IF_ERROR(MergeAndRectify(session_dir, session, camera, response, validation, read_noise, noise,
-                                           rectifier, &images->validation_lobe));
+                                           rectifier, options.keep_camera_hdr, &images->validation_lobe));
   return Status::Ok();
 }
 

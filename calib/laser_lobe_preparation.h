@@ -22,6 +22,9 @@ struct LaserLobePreparationOptions {
   double board_distance_m = 0;
   // SESSION/calib/rig.json (camera intrinsics and pose) and response.json (linearisation).
   SessionCalibrationOptions calibration;
+  // Also keep each HDR image in camera pixels (BoardHdr::camera_*), for predictions imaged in
+  // the camera (`thinslab predict`).
+  bool keep_camera_hdr = false;
   bool Check(std::string* error) const;
 };
 
@@ -29,6 +32,8 @@ struct BoardHdr {
   Image radiance;       // DN per microsecond, on the board grid.
   Image variance;       // Of `radiance`: (DN per microsecond)^2, camera pixels independent.
   Image all_saturated;  // 1 where every exposure saturated.
+  // With keep_camera_hdr: the same before rectification, in camera pixels.
+  Image camera_radiance, camera_variance, camera_all_saturated;
   int num_frames = 0;
   int num_exposures = 0;  // Distinct exposure times.
   // Does the camera apply the exposures it reports (calib/exposure_check.h)? Measured on the

@@ -261,13 +261,13 @@ double LaserCoreRadius(const PhaseFitOptions& options, const LaserLobeImages& im
 
 }  // namespace
 
-Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& images,
-                         Eigen::Vector2d* beam_centre_m, std::vector<LaserRing>* rings, bool* flat_fielded,
-                         bool* clean_subtracted) {
+Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& images, LaserRingGeometry* geometry,
+                         std::vector<LaserRing>* rings) {
+  *geometry = LaserRingGeometry();
   if (images.lobe.empty()) return Status::Error("FitPhase: no contaminated laser lobe");
   if (!(images.board_distance_m > 0)) return Status::Error("FitPhase: board distance must be > 0");
-  THINSLAB_RETURN_IF_ERROR(FindBeamCentre(images, beam_centre_m));
-  const Eigen::Vector2d centre = *beam_centre_m;
+  THINSLAB_RETURN_IF_ERROR(FindBeamCentre(images, &geometry->beam_centre_m));
+  const Eigen::Vector2d centre = geometry->beam_centre_m;
   const Image& lobe = images.lobe.radiance;
   const int w = lobe.width(), h = lobe.height();
   const double p = images.pixel_pitch_m, d = images.board_distance_m;
@@ -281,11 +281,13 @@ Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& 
     if (!(flat_centre > 0)) return Status::Error("FitPhase: the flat field has no signal at the beam centre");
   }
   const bool subtract = options.subtract_clean && !images.clean.empty();
-  *flat_fielded = flat;
-  *clean_subtracted = subtract;
-
   const double r_core = LaserCoreRadius(options, images);
   const double r_max = d * std::tan(options.max_theta_deg * kPi / 180);
+  geometry->flat_fielded = flat;
+  geometry->clean_subtracted = subtract;
+  geometry->flat_at_centre = flat_centre;
+  geometry->r_core_m = r_core;
+  geometry->r_max_m = r_max;
   const double ring_w = options.ring_width_px * p;
   const int num_bins = std::max(1, static_cast<int>((r_max - r_core) / ring_w));
   std::vector<std::vector<double>> bins(num_bins);
@@ -336,9 +338,12 @@ Status FitPhaseAtMaxTheta(const PhaseFitOptions& options, const LaserLobeImages&
   *summary = PhaseFitSummary();
   std::string error;
   if (!options.Check(&error)) return Status::Error(error);
-  THINSLAB_RETURN_IF_ERROR(MeasureLaserRings(options, images, &summary->beam_centre_m, rings, &summary->flat_fielded,
-                                             &summary->clean_subtracted));
-  const double r_core = LaserCoreRadius(options, images);
+  LaserRingGeometry geometry;
+  THINSLAB_RETURN_IF_ERROR(MeasureLaserRings(options, images, &geometry, rings));
+  summary->beam_centre_m = geometry.beam_centre_m;
+  summary->flat_fielded = geometry.flat_fielded;
+  summary->clean_subtracted = geometry.clean_subtracted;
+  const double r_core = geometry.r_core_m;
   summary->num_rings = static_cast<int>(rings->size());
   if (rings->size() < 5) {
     std::ostringstream msg;
@@ -529,13 +534,13 @@ Status PredictLaserLobe(const PhaseFitOptions& options, double beta, double g, d
   if (!(beta > 0) || !(g > -1 && g < 1) || !(tau > 0) || !(fit_board_distance_m > 0)) {
     return Status::Error("PredictLaserLobe: the fit's beta, g, tau and board distance must be > 0, (-1, 1), > 0, > 0");
   }
-  bool flat = false, subtract = false;
-  THINSLAB_RETURN_IF_ERROR(
-      MeasureLaserRings(options, images, &prediction->beam_centre_m, &prediction->rings, &flat, &subtract));
+  THINSLAB_RETURN_IF_ERROR(MeasureLaserRings(options, images, &prediction->geometry, &prediction->rings));
+  prediction->beam_centre_m = prediction->geometry.beam_centre_m;
   const double d = images.board_distance_m;
   prediction->board_distance_m = d;
   // Eq. 8's beta holds 1 / d^2 (board irradiance of a point source at distance d / cos theta).
   const double scale = beta * Sqr(fit_board_distance_m / d);
+  prediction->scale = scale;
   double sum_pm = 0, sum_pp = 0;
   for (LaserRing& ring : prediction->rings) {
     ring.model = scale * LaserLobeProfile(std::cos(ring.theta_rad), g, tau);

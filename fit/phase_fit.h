@@ -103,12 +103,21 @@ std::vector<std::string> ContaminantCategories(double g, double sigma_g);
 bool FitEq8ToRings(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double* beta, double* g,
                    double* tau);
 
+// Where and how the rings were measured.
+struct LaserRingGeometry {
+  Eigen::Vector2d beam_centre_m = Eigen::Vector2d::Zero();  // On the board (sample x, y).
+  bool flat_fielded = false, clean_subtracted = false;
+  // Ring value = (lobe - clean) flat_at_centre / flat: the board as the camera sees it at the
+  // beam centre (1 without flat fielding).
+  double flat_at_centre = 1;
+  double r_core_m = 0, r_max_m = 0;  // Rings span [r_core, r_max) around the centre.
+};
+
 // The rings of `images.lobe` (flat-fielded and clean-subtracted when options allow and the
 // capture has them) around the beam centre found in it, from the spike core out to
 // options.max_theta_deg; each a median with its standard error (Sec. 5.2).
-Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& images,
-                         Eigen::Vector2d* beam_centre_m, std::vector<LaserRing>* rings, bool* flat_fielded,
-                         bool* clean_subtracted);
+Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& images, LaserRingGeometry* geometry,
+                         std::vector<LaserRing>* rings);
 
 // What a fitted lobe predicts for a measured one (issue #23 section 4), per band of theta.
 struct LobePredictionBand {
@@ -121,7 +130,9 @@ struct LobePredictionBand {
 };
 struct LobePrediction {
   Eigen::Vector2d beam_centre_m = Eigen::Vector2d::Zero();  // Found in the measured lobe.
+  LaserRingGeometry geometry;
   double board_distance_m = 0;
+  double scale = 0;  // beta (d_fit / d)^2: the Eq. 8 profile times this is a ring's value.
   std::vector<LaserRing> rings;  // Measured; `model` holds the prediction.
   double scale_ratio = 0;        // Best-fitting scale / the fit's scale (1: the fit's beta holds).
   std::vector<LobePredictionBand> bands;  // 0-15, 15-30, 30-45, 45-60, 60-90 deg with rings, then all (0-90).

@@ -158,6 +158,16 @@ TEST(CliValidationShadowLobe, LobeFitsPredictValidationBracketsAndOtherBoardDist
   // Eq. 8 is single scattering and the simulated lobe is not: 0.009 measured (docs/models/laser_lobe_g.md).
   EXPECT_LT(error, 0.03) << lobe.dump();
   EXPECT_TRUE(FileExists(dir / "predict/lobe_rings.csv"));
+  // The same lobe imaged in the camera's pixels (flat and clean glass put back), per pixel.
+  const nlohmann::json& camera = predicted["lobe_camera"];
+  std::printf("predict at 30 mm in camera pixels: relative RMS %.4f (noise alone %.4f) over %d px\n",
+              camera["relative_rms"].get<double>(), camera["noise_relative_rms"].get<double>(),
+              camera["pixels"].get<int>());
+  EXPECT_GT(camera["pixels"].get<int>(), 1000) << camera.dump();
+  EXPECT_LT(camera["relative_rms"].get<double>(), 2 * camera["noise_relative_rms"].get<double>()) << camera.dump();
+  Image lobe_camera;
+  ASSERT_TRUE(ReadExr(dir / "predict/lobe_camera.exr", &lobe_camera).ok());
+  EXPECT_EQ(lobe_camera.width(), 400);
 
   // Able to fail: the same fit with g 0.1 lower.
   const std::string wrong = dir / "wrong";
@@ -166,10 +176,12 @@ TEST(CliValidationShadowLobe, LobeFitsPredictValidationBracketsAndOtherBoardDist
   edited["g"] = edited["g"].get<double>() - 0.1;
   ASSERT_TRUE(WriteFileAtomically(wrong + "/summary.json", edited.dump(2)).ok());
   RunThinslabOk("predict " + b + " --fit " + wrong + " --out " + (dir / "predict_wrong"));
-  const double wrong_error =
-      ReadJsonFile(dir / "predict_wrong/summary.json")["lobe"]["bands"].back()["relative_rms"].get<double>();
-  std::printf("predict at 30 mm with g 0.1 lower: relative RMS %.4f\n", wrong_error);
+  const nlohmann::json wrong_summary = ReadJsonFile(dir / "predict_wrong/summary.json");
+  const double wrong_error = wrong_summary["lobe"]["bands"].back()["relative_rms"].get<double>();
+  const double wrong_camera = wrong_summary["lobe_camera"]["relative_rms"].get<double>();
+  std::printf("predict at 30 mm with g 0.1 lower: relative RMS %.4f, in camera pixels %.4f\n", wrong_error, wrong_camera);
   EXPECT_GT(wrong_error, 5 * error);
+  EXPECT_GT(wrong_camera, 5 * camera["relative_rms"].get<double>());
 }
 
 }  // namespace
