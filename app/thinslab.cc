@@ -39,7 +39,7 @@ const std::vector<Command>& Commands() {
       {"sim", thinslab::RunSim, "simulate a capture session (sim shadow-maps | laser | dot-scan | pattern)"},
       {"calib", thinslab::RunCalib, "calibrate (calib camera | pose | dots | response | hdr | flat | gamma)"},
       {"fit", thinslab::RunFit, "fit a model to a capture (fit tau | phase | dmf)"},
-      {"predict", thinslab::RunPredict, "images a dot-scan fit predicts for dots it was not fitted to"},
+      {"predict", thinslab::RunPredict, "what a fit (tau, phase, dmf) predicts for light states it was not fitted to"},
       {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy"},
       {"synth", thinslab::RunSynth, "synthesize contamination layers from measured prototypes"},
       {"bench", thinslab::RunBench, "speed-against-accuracy sweep of the fit knobs (bench sweep)"},
