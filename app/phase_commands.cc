@@ -116,6 +116,8 @@ std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images,
   j["max_theta_trials"] = trials;
   j["beam_centre_m"] = {s.beam_centre_m.x(), s.beam_centre_m.y()};
   j["board_distance_m"] = images.board_distance_m;  // The manifest's, or --board-distance-m.
+  j["board_pitch_m"] = images.pixel_pitch_m;        // The manifest's, or --board-pitch-m.
+  j["ring_estimator"] = "mean, sector-cluster standard error";
   j["noise"] = images.noise.ToJson();
   j["categories"] = s.categories;
   j["calibration"] = CalibrationSummaryJson(calibration);
@@ -250,6 +252,8 @@ int RunFitPhase(int argc, char** argv) {
   parser.AddDouble("board-distance-m", &preparation.board_distance_m,
                    "override of the manifest's board distance [m] (0: the manifest's); also the plane the frames are "
                    "rectified onto");
+  parser.AddDouble("board-pitch-m", &preparation.board_pitch_m,
+                   "board grid pitch the lobe is rectified onto [m] (0: the manifest's rig.sample.pixel_pitch_m)");
   AddCalibrationOptions(&parser, &preparation.calibration);
   bool allow_incomplete = false;
   AddIncompleteCaptureOption(&parser, &allow_incomplete);

@@ -26,6 +26,11 @@ bool LaserLobePreparationOptions::Check(std::string* error) const {
              "] m (--board-distance-m; 0 = the manifest's)";
     return false;
   }
+  if (!(board_pitch_m == 0 || (board_pitch_m >= 1e-6 && board_pitch_m <= 0.01))) {
+    *error = "LaserLobePreparationOptions::board_pitch_m = " + std::to_string(board_pitch_m) +
+             ". Violated constraint: 0 (the manifest's) or [1e-6, 0.01] m (--board-pitch-m)";
+    return false;
+  }
   return true;
 }
 
@@ -127,13 +132,14 @@ Status PrepareLaserLobe(const std::string& session_dir, const Session& session,
     read_noise = std::sqrt(std::max(sum_sq / n - mean * mean, 0.25));
   }
   const SampleInfo& sample = session.rig.sample;
-  const double p = sample.pixel_pitch_m;
+  const double p = options.board_pitch_m > 0 ? options.board_pitch_m : sample.pixel_pitch_m;
   BoardGrid grid;
   grid.grid_min_m = sample.region_min_m;
   grid.pixel_pitch_m = p;
   THINSLAB_RETURN_IF_ERROR(CheckedGridSize(sample.region_max_m.x() - sample.region_min_m.x(),
                                            sample.region_max_m.y() - sample.region_min_m.y(), p, GridRounding::kNearest,
-                                           8, manifest + ": rig.sample (region_min_m, region_max_m, pixel_pitch_m)",
+                                           8, manifest + ": rig.sample (region_min_m, region_max_m, pixel_pitch_m" +
+                                               (options.board_pitch_m > 0 ? " replaced by --board-pitch-m)" : ")"),
                                            &grid.width_px, &grid.height_px));
   const double board_distance_m =
       options.board_distance_m > 0 ? options.board_distance_m : session.rig.board.distance_m;

@@ -20,6 +20,9 @@ struct LaserLobePreparationOptions {
   // Sample-to-board distance [m] replacing the manifest's rig.board.distance_m; 0 = the
   // manifest's. It is also the plane the frames are rectified onto (z = -distance).
   double board_distance_m = 0;
+  // Pitch of the board grid the lobe is rectified onto [m], replacing the manifest's
+  // rig.sample.pixel_pitch_m; 0 = the manifest's. The grid keeps the manifest's region.
+  double board_pitch_m = 0;
   // SESSION/calib/rig.json (camera intrinsics and pose) and response.json (linearisation).
   SessionCalibrationOptions calibration;
   // Also keep each HDR image in camera pixels (BoardHdr::camera_*), for predictions imaged in

@@ -73,7 +73,8 @@ std::string PhaseFitSummary::FullReport() const {
   out.precision(5);
   out << BriefReport() << "\nmessage: " << message << "\n"
       << "g: " << g << " +- " << sigma_g << " (covariance " << sigma_g_covariance << ", jackknife " << sigma_g_jackknife
-      << ", angle-range consistency " << sigma_g_range << ", choice of the outermost angle " << sigma_g_choice
+      << ", angle-range consistency " << sigma_g_range << ", second-order extension " << sigma_g_multiple
+      << " with relative amplitude " << second_order_fraction << ", choice of the outermost angle " << sigma_g_choice
       << ")\n"
       << "beta: " << beta << " (sigma of log beta " << sigma_log_beta << ")\n"
       << "tau: " << tau << " +- " << sigma_tau << "\n"
@@ -238,6 +239,53 @@ double RangeConsistencySigmaG(const PhaseFitOptions& options, const std::vector<
   return std::abs(g - g_all);
 }
 
+// Model-extension term: |g(Eq. 8) - g(Eq. 8 + a second-order lobe at g^2)|, both fitted to all
+// rings from the Eq. 8 solution (tau held at its fitted value). Multiple scattering, which Eq. 8
+// leaves out, is mostly absorbed by a lower g that fits every angle range about equally well, so
+// neither the jackknife nor the range term sees it (g 0.2, tau 0.3, albedo 0.3: error -0.012,
+// those terms 0.003); the extended fit gives the lobe somewhere else to put that light. On a
+// single-scattering lobe c stays near 0 and the term near the noise. Returns 0 when the extended
+// fit fails; *c gets its relative amplitude.
+double TwoOrderSigmaG(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double log_beta_1,
+                      double g_1, double tau, double chi2_scale, double* c_out) {
+  // Profile of the cost over the amplitude c in [0, 1] (a local solver started at c = 0 stays
+  // there when adding broad light alone makes the fit worse, although moving g with it would not).
+  struct Point {
+    double c, g, cost;
+  };
+  std::vector<Point> profile;
+  for (double c_fixed : {0.0, 0.01, 0.02, 0.03, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1.0}) {
+    double log_beta = log_beta_1, g = g_1, c = c_fixed, t = tau;
+    ceres::Problem problem;
+    for (const auto& ring : rings) {
+      problem.AddResidualBlock(LaserLobeTwoOrderRingCost::Create(std::cos(ring.theta_rad), ring.intensity, ring.sigma),
+                               new ceres::HuberLoss(options.huber_scale), &log_beta, &g, &c, &t);
+    }
+    problem.SetParameterLowerBound(&g, 0, -0.99);
+    problem.SetParameterUpperBound(&g, 0, 0.99);
+    problem.SetParameterBlockConstant(&c);
+    problem.SetParameterBlockConstant(&t);
+    ceres::Solver::Options solver_options;
+    solver_options.linear_solver_type = ceres::DENSE_QR;
+    solver_options.max_num_iterations = 100;
+    solver_options.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver_options, &problem, &summary);
+    if (summary.IsSolutionUsable()) profile.push_back({c_fixed, g, summary.final_cost});
+  }
+  *c_out = 0;
+  if (profile.empty()) return 0;
+  const Point best = *std::min_element(profile.begin(), profile.end(),
+                                       [](const Point& a, const Point& b) { return a.cost < b.cost; });
+  *c_out = best.c;
+  // Profile interval of g at delta chi2 = 1, with chi2 scaled as the covariance is (cost = chi2 / 2).
+  double spread = 0;
+  for (const Point& p : profile) {
+    if (2 * (p.cost - best.cost) <= chi2_scale) spread = std::max(spread, std::abs(p.g - g_1));
+  }
+  return spread;
+}
+
 }  // namespace
 
 bool FitEq8ToRings(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double* beta, double* g,
@@ -251,6 +299,57 @@ bool FitEq8ToRings(const PhaseFitOptions& options, const std::vector<LaserRing>&
 }
 
 namespace {
+
+// One board pixel of a ring: its value, its variance from the HDR merge (camera pixels taken as
+// independent) and its azimuth around the beam centre.
+struct RingPixel {
+  double value = 0, variance = 0, azimuth_rad = 0;
+};
+
+// A ring's value and standard error (issue #24 section 2). The mean, not the median: on a
+// photon-starved lobe most pixels are exactly 0 and the rest skewed, and the median falls below
+// the mean (to 0 when over half the pixels are 0), which biased g high and made it depend on the
+// map pitch (averaging more camera pixels per board pixel makes a pixel less skewed). The mean
+// of the pixels is unbiased for any noise distribution. Its standard error treats azimuthal
+// sectors of the ring as independent clusters (the cluster-robust variance of a mean): board
+// pixels finer than the camera's footprint share camera pixels and are correlated, so s /
+// sqrt(n) would be too small, while sectors are far apart. A bright outlier (a speck on the
+// board) raises its sector's mean and with it the standard error, so the Huber loss of the fit
+// weighs the ring down. The HDR variance of the mean is a floor (a ring of exact zeros).
+void RingMean(const std::vector<RingPixel>& pixels, double* mean, double* standard_error) {
+  const int n = static_cast<int>(pixels.size());
+  double sum = 0, variance_sum = 0;
+  for (const RingPixel& px : pixels) {
+    sum += px.value;
+    variance_sum += px.variance;
+  }
+  *mean = sum / n;
+  const int sectors = std::clamp(n / 4, 2, 16);
+  std::vector<double> sector_sum(sectors, 0.0);
+  std::vector<int> sector_count(sectors, 0);
+  for (const RingPixel& px : pixels) {
+    const int s = std::min(sectors - 1, static_cast<int>((px.azimuth_rad + kPi) / (2 * kPi) * sectors));
+    sector_sum[s] += px.value;
+    ++sector_count[s];
+  }
+  int used = 0;
+  double cluster_ss = 0;
+  for (int s = 0; s < sectors; ++s) {
+    if (sector_count[s] == 0) continue;
+    ++used;
+    cluster_ss += Sqr(sector_sum[s] - sector_count[s] * *mean);
+  }
+  double variance = 0;
+  if (used >= 2) {
+    variance = static_cast<double>(used) / (used - 1) * cluster_ss / Sqr(static_cast<double>(n));
+  } else {  // The whole ring in one sector (a sliver at the view's edge): pixels as independent.
+    double ss = 0;
+    for (const RingPixel& px : pixels) ss += Sqr(px.value - *mean);
+    variance = ss / (n - 1) / n;
+  }
+  variance = std::max(variance, variance_sum / Sqr(static_cast<double>(n)));
+  *standard_error = std::max(std::sqrt(variance), 1e-12);
+}
 
 // FitPhase at options.max_theta_deg.
 // The spike core's radius: rings start here (PhaseFitOptions::core_beam_radii).
@@ -290,7 +389,7 @@ Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& 
   geometry->r_max_m = r_max;
   const double ring_w = options.ring_width_px * p;
   const int num_bins = std::max(1, static_cast<int>((r_max - r_core) / ring_w));
-  std::vector<std::vector<double>> bins(num_bins);
+  std::vector<std::vector<RingPixel>> bins(num_bins);
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const size_t i = static_cast<size_t>(y) * w + x;
@@ -302,28 +401,27 @@ Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& 
       const int k = static_cast<int>((r - r_core) / ring_w);
       if (k < 0 || k >= num_bins) continue;
       double v = lobe.data()[i];
-      if (subtract) v -= images.clean.radiance.data()[i];
+      double var = images.lobe.variance.data()[i];
+      if (subtract) {
+        v -= images.clean.radiance.data()[i];
+        var += images.clean.variance.data()[i];
+      }
       if (flat) {
         const double f = images.flat.radiance.data()[i];
         if (!(f > 0)) continue;
         v *= flat_centre / f;
+        var *= Sqr(flat_centre / f);
       }
-      bins[k].push_back(v);
+      bins[k].push_back({v, std::max(var, 0.0), std::atan2(q.y() - centre.y(), q.x() - centre.x())});
     }
   }
   rings->clear();
   for (int k = 0; k < num_bins; ++k) {
     if (static_cast<int>(bins[k].size()) < options.min_ring_pixels) continue;
-    std::vector<double> v = bins[k];
-    const double med = Median(&v);
-    for (double& x : v) x = std::abs(x - med);
-    const double mad = Median(&v);
     LaserRing ring;
     ring.r_m = r_core + (k + 0.5) * ring_w;
     ring.theta_rad = std::atan(ring.r_m / d);
-    ring.intensity = med;
-    // Standard error of the median of ~normal data: 1.2533 * sigma / sqrt(n), sigma = 1.4826 MAD.
-    ring.sigma = std::max(1.2533 * 1.4826 * mad / std::sqrt(static_cast<double>(bins[k].size())), 1e-12);
+    RingMean(bins[k], &ring.intensity, &ring.sigma);
     ring.pixels = static_cast<int>(bins[k].size());
     rings->push_back(ring);
   }
@@ -419,8 +517,12 @@ Status FitPhaseAtMaxTheta(const PhaseFitOptions& options, const LaserLobeImages&
   summary->sigma_g_covariance = std::sqrt(std::max(var, 0.0)) * scale;
   summary->sigma_g_jackknife = JackknifeSigmaG(options, *rings);
   summary->sigma_g_range = RangeConsistencySigmaG(options, *rings, g);
-  summary->sigma_g = std::hypot(std::max(summary->sigma_g_covariance, summary->sigma_g_jackknife),
-                                summary->sigma_g_range);
+  summary->sigma_g_multiple =
+      TwoOrderSigmaG(options, *rings, log_beta, g, tau, std::max(1.0, summary->chi2_reduced),
+                     &summary->second_order_fraction);
+  summary->sigma_g = std::hypot(std::hypot(std::max(summary->sigma_g_covariance, summary->sigma_g_jackknife),
+                                           summary->sigma_g_range),
+                                summary->sigma_g_multiple);
   covariance.GetCovarianceBlock(&log_beta, &log_beta, &var);
   summary->sigma_log_beta = std::sqrt(std::max(var, 0.0)) * scale;
   if (options.tau_free) {

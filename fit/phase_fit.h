@@ -3,7 +3,7 @@
 // The HDR board image is flat-fielded (the board under a uniform light divides out the camera's
 // vignetting), the clean-glass lobe is subtracted (stray light), the beam centre is found with
 // sub-pixel precision, the board is cut into rings of radius r around it, theta = atan(r / d),
-// and each ring gives a robust mean (median) with its standard error. Eq. 8 is fitted to the
+// and each ring gives the mean of its pixels with a cluster-robust standard error. Eq. 8 is fitted to the
 // rings with Ceres (parameters log beta, g and optionally tau with a Gaussian prior; Huber
 // loss), and the covariance gives sigma_g.
 #pragma once
@@ -54,8 +54,8 @@ struct PhaseFitOptions {
 struct LaserRing {
   double r_m = 0;
   double theta_rad = 0;
-  double intensity = 0;  // Flat-fielded DN per microsecond (median of the ring).
-  double sigma = 0;      // Standard error of the median.
+  double intensity = 0;  // Flat-fielded DN per microsecond (mean of the ring's board pixels).
+  double sigma = 0;      // Its standard error (azimuthal sectors as clusters; fit/phase_fit.cc).
   int pixels = 0;
   double model = 0;      // Fitted Eq. 8 value (after FitPhase).
 };
@@ -73,6 +73,10 @@ struct PhaseFitSummary {
   // With max_theta_auto, sigma_g also holds (in quadrature) |g - g at the neighbouring candidate
   // angle|: what the choice of the outermost angle moves g by (0 without it).
   double sigma_g_choice = 0;
+  // |g - g of Eq. 8 extended by a second-order lobe HG-like at g^2| (in quadrature in sigma_g):
+  // the multiple scattering Eq. 8 leaves out (fit/phase_fit.cc, TwoOrderSigmaG), and the
+  // extension's relative amplitude c.
+  double sigma_g_multiple = 0, second_order_fraction = 0;
   double beta = 0, sigma_log_beta = 0;
   double tau = 0, sigma_tau = 0;
   double chi2_reduced = 0;
@@ -115,7 +119,7 @@ struct LaserRingGeometry {
 
 // The rings of `images.lobe` (flat-fielded and clean-subtracted when options allow and the
 // capture has them) around the beam centre found in it, from the spike core out to
-// options.max_theta_deg; each a median with its standard error (Sec. 5.2).
+// options.max_theta_deg; each a mean with its standard error (Sec. 5.2).
 Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& images, LaserRingGeometry* geometry,
                          std::vector<LaserRing>* rings);
 
