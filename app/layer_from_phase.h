@@ -22,7 +22,7 @@ Status ReadJsonObjectFile(const std::string& path, const std::string& expected, 
 
 struct PhaseLayerChoice {
   std::string summary_path;
-  std::string ladder_path;  // "" when the fit wrote no ladder.json (fewer than 10 rings).
+  std::string ladder_path;  // "" when the fit wrote no ladder.json (fits before 2026-12-05 with < 10 rings).
   int rung = 2;             // 0 attenuator, 1 isotropic slab, 2 HG layer.
   double g = 0, sigma_g = 0;
 };

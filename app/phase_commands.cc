@@ -97,7 +97,10 @@ std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images,
   j["sigma_g"] = s.sigma_g;
   j["sigma_g_covariance"] = s.sigma_g_covariance;
   j["sigma_g_jackknife"] = s.sigma_g_jackknife;
-  j["sigma_g_range"] = s.sigma_g_range;
+  j["jackknife_method"] = s.jackknife_method;
+  j["sigma_g_range"] = s.range_term_available ? nlohmann::json(s.sigma_g_range) : nlohmann::json(nullptr);
+  j["sigma_g_multiple"] = s.sigma_g_multiple;
+  j["second_order_fraction"] = s.second_order_fraction;
   j["sigma_g_choice"] = s.sigma_g_choice;
   j["beta"] = s.beta;
   j["sigma_log_beta"] = s.sigma_log_beta;
@@ -120,6 +123,7 @@ std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images,
   j["ring_estimator"] = "mean, sector-cluster standard error";
   j["noise"] = images.noise.ToJson();
   j["categories"] = s.categories;
+  j["warnings"] = s.warnings;
   j["calibration"] = CalibrationSummaryJson(calibration);
   j["capture"] = CaptureSummaryJson(capture);
   j["exposure_check"] = ExposureCheckJson(images.lobe.exposure_check, false);
@@ -171,15 +175,16 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   const std::string exposure_warning = images.lobe.exposure_check.Warning();
   if (!exposure_warning.empty()) std::cerr << "warning: " << session_dir << ": laser frames: " << exposure_warning << "\n";
   THINSLAB_RETURN_IF_ERROR(FitPhase(options, images, rings, summary).WithContext(session_dir));
+  for (const std::string& w : summary->warnings) std::cerr << "warning: " << session_dir << ": " << w << "\n";
   // Model ladder rungs 0-2 (issue #8) on the same rings; 2 standard errors as in the dot-scan
   // ladder.
   LaserLadderResult ladder_result;
-  const bool has_ladder = rings->size() >= 10;
+  const bool has_ladder = rings->size() >= 5;
   if (has_ladder) {
     PhaseFitOptions chosen = options;  // The rings are those of the kept outermost angle.
     chosen.max_theta_auto = false;
     chosen.max_theta_deg = summary->max_theta_deg;
-    THINSLAB_RETURN_IF_ERROR(FitLaserLobeLadder(*rings, chosen, 2.0, &ladder_result).WithContext(session_dir));
+    THINSLAB_RETURN_IF_ERROR(FitLaserLobeLadder(*rings, chosen, 2.0, summary, &ladder_result).WithContext(session_dir));
   }
   if (ladder != nullptr) *ladder = ladder_result;
   // A validation lobe (issue #23 section 4): a second contaminated bracket, never fitted, against
@@ -290,7 +295,8 @@ int RunFitPhase(int argc, char** argv) {
     std::cout << "model ladder: rung " << ladder.chosen_rung << " (" << LaserLadderRungName(ladder.chosen_rung)
               << "); held-out chi2 per ring";
     for (int k = 0; k < kNumLaserLadderRungs; ++k) std::cout << (k ? ", " : " ") << ladder.held_out_chi2[k];
-    std::cout << " (rungs 0, 1, 2)\n";
+    std::cout << " (rungs 0, 1, 2; " << ladder.split << ")\n";
+    if (ladder.overruled_rung >= 0) std::cout << "model ladder: " << ladder.overrule_reason << "\n";
   }
   std::cout << "wrote " << out_dir << "\n";
   return 0;

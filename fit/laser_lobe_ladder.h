@@ -6,13 +6,14 @@
 //   rung 1  thin isotropic slab (Frisvad et al. 2005 single scattering, p = Lambda / 4 pi): one
 //           scale beta (albedo x beam x board x camera), tau given;
 //   rung 2  Henyey-Greenstein contaminant layer (Gu et al. 2007 Eq. 8): beta and g.
-// The rings of FitPhase are split, even rings fitted and odd rings held out; each rung
-// predicts the held-out rings and the choice is fit/ladder_choice.h's (the simplest rung within
+// The rings of FitPhase are split, even rings fitted and odd rings held out (with fewer than 10
+// rings: each ring held out in turn, leave-one-out); each rung predicts the held-out rings and the choice is fit/ladder_choice.h's (the simplest rung within
 // noise of the best, errors in units of each ring's standard error). BIC on the training rings
 // is reported as the documented alternative.
 #pragma once
 
 #include <array>
+#include <string>
 #include <vector>
 
 #include "core/status.h"
@@ -35,11 +36,17 @@ struct LaserLadderResult {
   double frisvad_beta = 0;             // Rung 1.
   double gu_beta = 0, gu_g = 0;        // Rung 2.
   int chosen_rung = -1, chosen_by_bic = -1;
+  std::string split;  // "odd rings held out" (>= 10 rings) or "leave-one-out".
+  // When the fit of all rings rejects the held-out choice (|g| > 3 sigma_g rejects rungs 0-1):
+  // the held-out choice and why it was replaced by rung 2; -1 otherwise.
+  int overruled_rung = -1;
+  std::string overrule_reason;
 };
 
-// `rings` as FitPhase returns them (at least 10); options.tau is the layer's optical thickness.
+// `rings` as FitPhase returns them (at least 5); options.tau is the layer's optical thickness.
+// `full_fit`: FitPhase's summary on the same rings (nullptr: the held-out choice stands).
 Status FitLaserLobeLadder(const std::vector<LaserRing>& rings, const PhaseFitOptions& options,
-                          double significance_sigmas, LaserLadderResult* result);
+                          double significance_sigmas, const PhaseFitSummary* full_fit, LaserLadderResult* result);
 
 std::string LaserLadderJson(const LaserLadderResult& result);
 

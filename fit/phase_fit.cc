@@ -73,7 +73,8 @@ std::string PhaseFitSummary::FullReport() const {
   out.precision(5);
   out << BriefReport() << "\nmessage: " << message << "\n"
       << "g: " << g << " +- " << sigma_g << " (covariance " << sigma_g_covariance << ", jackknife " << sigma_g_jackknife
-      << ", angle-range consistency " << sigma_g_range << ", second-order extension " << sigma_g_multiple
+      << " [" << jackknife_method << "], angle-range consistency "
+      << (range_term_available ? std::to_string(sigma_g_range) : std::string("n/a (< 5 rings within half the range)")) << ", second-order extension " << sigma_g_multiple
       << " with relative amplitude " << second_order_fraction << ", choice of the outermost angle " << sigma_g_choice
       << ")\n"
       << "beta: " << beta << " (sigma of log beta " << sigma_log_beta << ")\n"
@@ -86,6 +87,7 @@ std::string PhaseFitSummary::FullReport() const {
       << "flat-fielded: " << (flat_fielded ? "yes" : "no") << ", clean subtracted: " << (clean_subtracted ? "yes" : "no")
       << "\ncategories (Gu 2007 Fig. 2): ";
   for (size_t i = 0; i < categories.size(); ++i) out << (i ? ", " : "") << categories[i];
+  for (const std::string& w : warnings) out << "\nwarning: " << w;
   out << "\ntime [s]: " << total_s << "\n";
   return out.str();
 }
@@ -197,23 +199,34 @@ bool SolveEq8(const PhaseFitOptions& options, const std::vector<LaserRing>& ring
 
 // Block jackknife of g over kJackknifeBlocks contiguous theta blocks of rings. When Eq. 8 does
 // not describe the lobe's shape (multiple scattering, stray light), fits on different angle
-// ranges disagree, and this spread shows it where the covariance cannot.
+// ranges disagree, and this spread shows it where the covariance cannot. With fewer than two
+// rings per block, each ring is its own block (delete-one jackknife), which needs >= 4 rings
+// left per fit. *method says which, or why none ("" never).
 constexpr int kJackknifeBlocks = 8;
-double JackknifeSigmaG(const PhaseFitOptions& options, const std::vector<LaserRing>& rings) {
+double JackknifeSigmaG(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, std::string* method) {
   const int n = static_cast<int>(rings.size());
-  if (n < 2 * kJackknifeBlocks) return 0;
+  if (n < 5) {
+    *method = "not computed: " + std::to_string(n) + " rings (at least 5 needed)";
+    return 0;
+  }
+  const int blocks = n >= 2 * kJackknifeBlocks ? kJackknifeBlocks : n;
+  *method = blocks == n ? "delete-one over " + std::to_string(n) + " rings"
+                        : std::to_string(blocks) + " contiguous theta blocks";
   std::vector<double> estimates;
-  for (int b = 0; b < kJackknifeBlocks; ++b) {
+  for (int b = 0; b < blocks; ++b) {
     std::vector<LaserRing> kept;
     for (int k = 0; k < n; ++k) {
-      if (k * kJackknifeBlocks / n != b) kept.push_back(rings[k]);
+      if (k * blocks / n != b) kept.push_back(rings[k]);
     }
     double log_beta, g, tau;
     ceres::Problem problem;
     ceres::Solver::Summary summary;
     if (SolveEq8(options, kept, &log_beta, &g, &tau, &problem, &summary)) estimates.push_back(g);
   }
-  if (estimates.size() < 2) return 0;
+  if (estimates.size() < 2) {
+    *method = "not computed: fewer than 2 of the " + std::to_string(blocks) + " jackknife fits succeeded";
+    return 0;
+  }
   double mean = 0;
   for (double e : estimates) mean += e / estimates.size();
   double ss = 0;
@@ -225,7 +238,10 @@ double JackknifeSigmaG(const PhaseFitOptions& options, const std::vector<LaserRi
 // Model-consistency term: |g(all rings) - g(rings with theta <= max_theta / 2)|. Single
 // scattering (Eq. 8) misses the multiply scattered light, which weighs most at large angles,
 // so a lobe Eq. 8 does not describe gives different g over different angle ranges.
-double RangeConsistencySigmaG(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double g_all) {
+// *available is false when the inner range has fewer than 5 rings or its fit fails (0 returned).
+double RangeConsistencySigmaG(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double g_all,
+                              bool* available) {
+  *available = false;
   const double theta_half = 0.5 * options.max_theta_deg * kPi / 180;
   std::vector<LaserRing> inner;
   for (const auto& ring : rings) {
@@ -236,7 +252,31 @@ double RangeConsistencySigmaG(const PhaseFitOptions& options, const std::vector<
   ceres::Problem problem;
   ceres::Solver::Summary summary;
   if (!SolveEq8(options, inner, &log_beta, &g, &tau, &problem, &summary)) return 0;
+  *available = true;
   return std::abs(g - g_all);
+}
+
+// Warnings when chi2/dof is more than 5 standard deviations of its distribution (sqrt(2 / dof))
+// from 1 and off by a factor of 3: the rings are not what Eq. 8 with their standard errors
+// predicts.
+std::vector<std::string> ChiSquareWarnings(double chi2_reduced, double dof, int num_rings) {
+  std::vector<std::string> warnings;
+  const double spread = 5 * std::sqrt(2 / dof);
+  std::ostringstream msg;
+  msg.precision(3);
+  if (chi2_reduced > std::max(3.0, 1 + spread)) {
+    msg << "model mismatch: chi2/dof = " << chi2_reduced << " over " << num_rings
+        << " rings: Eq. 8 (single scattering, the rig's geometry) does not describe the lobe within the rings' noise "
+           "(multiple scattering of a thick or bright layer, a wrong board distance or beam centre, stray light); "
+           "sigma_g is scaled by sqrt(chi2/dof) and holds the second-order term";
+    warnings.push_back(msg.str());
+  } else if (chi2_reduced < std::min(1.0 / 3, 1 - spread)) {
+    msg << "chi2/dof = " << chi2_reduced << " over " << num_rings
+        << " rings: the residuals are smaller than the rings' standard errors say (correlated or overstated "
+           "noise); sigma_g may be too large";
+    warnings.push_back(msg.str());
+  }
+  return warnings;
 }
 
 // Model-extension term: |g(Eq. 8) - g(Eq. 8 + a second-order lobe at g^2)|, both fitted to all
@@ -303,7 +343,7 @@ namespace {
 // One board pixel of a ring: its value, its variance from the HDR merge (camera pixels taken as
 // independent) and its azimuth around the beam centre.
 struct RingPixel {
-  double value = 0, variance = 0, azimuth_rad = 0;
+  double value = 0, variance = 0, azimuth_rad = 0, r_m = 0;
 };
 
 // A ring's value and standard error (issue #24 section 2). The mean, not the median: on a
@@ -412,14 +452,17 @@ Status MeasureLaserRings(const PhaseFitOptions& options, const LaserLobeImages& 
         v *= flat_centre / f;
         var *= Sqr(flat_centre / f);
       }
-      bins[k].push_back({v, std::max(var, 0.0), std::atan2(q.y() - centre.y(), q.x() - centre.x())});
+      bins[k].push_back({v, std::max(var, 0.0), std::atan2(q.y() - centre.y(), q.x() - centre.x()), r});
     }
   }
   rings->clear();
   for (int k = 0; k < num_bins; ++k) {
     if (static_cast<int>(bins[k].size()) < options.min_ring_pixels) continue;
     LaserRing ring;
-    ring.r_m = r_core + (k + 0.5) * ring_w;
+    // The ring's mean pixel radius, not its middle: a ring has more pixels (area) on its outer
+    // side, and the lobe falls steeply at small angles.
+    ring.r_m = 0;
+    for (const RingPixel& px : bins[k]) ring.r_m += px.r_m / bins[k].size();
     ring.theta_rad = std::atan(ring.r_m / d);
     RingMean(bins[k], &ring.intensity, &ring.sigma);
     ring.pixels = static_cast<int>(bins[k].size());
@@ -515,8 +558,8 @@ Status FitPhaseAtMaxTheta(const PhaseFitOptions& options, const LaserLobeImages&
   double var = 0;
   covariance.GetCovarianceBlock(&g, &g, &var);
   summary->sigma_g_covariance = std::sqrt(std::max(var, 0.0)) * scale;
-  summary->sigma_g_jackknife = JackknifeSigmaG(options, *rings);
-  summary->sigma_g_range = RangeConsistencySigmaG(options, *rings, g);
+  summary->sigma_g_jackknife = JackknifeSigmaG(options, *rings, &summary->jackknife_method);
+  summary->sigma_g_range = RangeConsistencySigmaG(options, *rings, g, &summary->range_term_available);
   summary->sigma_g_multiple =
       TwoOrderSigmaG(options, *rings, log_beta, g, tau, std::max(1.0, summary->chi2_reduced),
                      &summary->second_order_fraction);
@@ -544,6 +587,7 @@ Status FitPhaseAtMaxTheta(const PhaseFitOptions& options, const LaserLobeImages&
     finish();
     return Status::Error("FitPhase: " + summary->message);
   }
+  summary->warnings = ChiSquareWarnings(summary->chi2_reduced, dof, summary->num_rings);
   summary->result = PhaseFitSummary::Result::kSuccess;
   summary->message = std::abs(g) > 0.985 ? "g is at its bound (|g| > 0.985): the lobe is narrower than the rings resolve"
                                          : "ok";

@@ -70,6 +70,11 @@ struct PhaseFitSummary {
   // g(theta <= max_theta / 2)|). The last two catch lobe-shape mismatch (multiple scattering,
   // which Eq. 8 leaves out) that the covariance, which assumes the model is right, cannot.
   double sigma_g = 0, sigma_g_covariance = 0, sigma_g_jackknife = 0, sigma_g_range = 0;
+  // How the jackknife was formed ("8 contiguous theta blocks", "delete-one over N rings", or
+  // "not computed: ..."); whether the range term could be formed (>= 5 rings within half the
+  // angle range): a 0 term is then "not measured", not "no spread".
+  std::string jackknife_method = "not computed";
+  bool range_term_available = false;
   // With max_theta_auto, sigma_g also holds (in quadrature) |g - g at the neighbouring candidate
   // angle|: what the choice of the outermost angle moves g by (0 without it).
   double sigma_g_choice = 0;
@@ -90,6 +95,8 @@ struct PhaseFitSummary {
   Eigen::Vector2d beam_centre_m = Eigen::Vector2d::Zero();
   std::vector<std::string> categories;  // Gu Fig. 2 categories consistent with g +- sigma_g.
   bool flat_fielded = false, clean_subtracted = false;
+  // E.g. chi2/dof far from 1 (model mismatch, or overstated noise); in summary.json and printed.
+  std::vector<std::string> warnings;
   double total_s = 0;
 
   bool IsUsable() const { return result == Result::kSuccess; }
