@@ -257,20 +257,23 @@ double RangeConsistencySigmaG(const PhaseFitOptions& options, const std::vector<
 }
 
 // Warnings when chi2/dof is more than 5 standard deviations of its distribution (sqrt(2 / dof))
-// from 1 and off by a factor of 3: the rings are not what Eq. 8 with their standard errors
-// predicts.
+// from 1 and off by a factor of 4: the rings are not what Eq. 8 with their standard errors
+// predicts. The factor was set after seeing single-scattering lobes of the simulated rig (albedo
+// 0.01) read 2.8-3.0 at 25 rings, from a small systematic not identified (the finite beam or the
+// camera's footprint on the steep inner rings are candidates); multiple scattering at tau 0.3,
+// albedo 0.3 reads 14-19, tau 1.5, albedo 0.9 over 5000.
 std::vector<std::string> ChiSquareWarnings(double chi2_reduced, double dof, int num_rings) {
   std::vector<std::string> warnings;
   const double spread = 5 * std::sqrt(2 / dof);
   std::ostringstream msg;
   msg.precision(3);
-  if (chi2_reduced > std::max(3.0, 1 + spread)) {
+  if (chi2_reduced > std::max(4.0, 1 + spread)) {
     msg << "model mismatch: chi2/dof = " << chi2_reduced << " over " << num_rings
         << " rings: Eq. 8 (single scattering, the rig's geometry) does not describe the lobe within the rings' noise "
            "(multiple scattering of a thick or bright layer, a wrong board distance or beam centre, stray light); "
            "sigma_g is scaled by sqrt(chi2/dof) and holds the second-order term";
     warnings.push_back(msg.str());
-  } else if (chi2_reduced < std::min(1.0 / 3, 1 - spread)) {
+  } else if (chi2_reduced < std::min(0.25, 1 - spread)) {
     msg << "chi2/dof = " << chi2_reduced << " over " << num_rings
         << " rings: the residuals are smaller than the rings' standard errors say (correlated or overstated "
            "noise); sigma_g may be too large";
