@@ -61,6 +61,9 @@ struct FitTauRun {
   // (app/layer_from_phase.h); "" = the options as given.
   std::string phase_dir;
   bool allow_incomplete_capture = false;  // --allow-incomplete (app/capture_options.h).
+  // Fit the even and the odd shadow frames separately too and compare them (summary.json
+  // `consistency`; needs >= 2 shadow frames): the noise part of sigma_tau put to a test.
+  bool split_half_check = true;
   std::string options_ini;      // Effective options, written as options.ini.
 };
 Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,

@@ -33,7 +33,7 @@ std::string PointToJson(const Eigen::Vector2d& p) { return nlohmann::json({p.x()
 
 std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, const CaptureCompleteness& capture,
                         const TauFitOptions& fit, const PhaseLayerChoice* phase, double color_max,
-                        const nlohmann::json& validation) {
+                        const nlohmann::json& validation, const nlohmann::json& consistency) {
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
   j["format_version"] = "1.0";
@@ -43,13 +43,25 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
   j["grid"] = {s.width, s.height};
   j["pixels"] = {{"total", s.pixels_total}, {"fitted", s.pixels_fitted}, {"dark", s.pixels_dark},
                  {"saturated", s.pixels_saturated}, {"outside", s.pixels_outside}, {"clamped", s.pixels_clamped},
-                 {"next_to_clamped", s.pixels_next_to_clamped}, {"dark_noise", s.pixels_dark_noise}};
+                 {"next_to_clamped", s.pixels_next_to_clamped}, {"dark_noise", s.pixels_dark_noise},
+                 {"mixed", s.pixels_mixed}};
+  j["resolution"] = {{"map_pitch_m", s.pixel_pitch_m},
+                     {"camera_footprint_m", {{"median", s.camera_footprint_median_m},
+                                             {"min", s.camera_footprint_min_m},
+                                             {"max", s.camera_footprint_max_m}}},
+                     {"camera_pixels_per_map_pixel", s.camera_pixels_per_map_pixel},
+                     {"max_mixed_tau_step", fit.max_mixed_tau_step}};
+  j["sigma_tau_parts_median"] = {{"noise", s.median_sigma_noise},
+                                 {"reference", s.median_sigma_reference},
+                                 {"multiple_scattering", s.median_sigma_model},
+                                 {"resolution", s.median_sigma_resolution}};
+  j["consistency"] = consistency;
+  j["warnings"] = s.warnings;
   j["reference"] = {{"mode", fit.reference},
                     {"pixels_judged_clean", s.pixels_judged_clean >= 0 ? nlohmann::json(s.pixels_judged_clean)
                                                                        : nlohmann::json(nullptr)}};
   j["outer_iterations"] = s.outer_iterations;
   j["final_max_update_tau"] = s.final_max_update_tau;
-  j["rms_normalized_residual"] = s.rms_normalized_residual;
   j["mean_scattered_fraction"] = s.mean_scattered_fraction;
   j["calibration"] = CalibrationSummaryJson(data.calibration);
   j["capture"] = CaptureSummaryJson(capture);
@@ -85,6 +97,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   prep_options.board_distance_m = run.board_distance_m;
   prep_options.calibration = run.calibration;
   prep_options.load_flat_field = run.fit.reference == "flat";
+  prep_options.split_halves = run.split_half_check;
   TauFitOptions fit = run.fit;
   PhaseLayerChoice phase;
   if (!run.phase_dir.empty()) {
@@ -111,6 +124,47 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   }
   TauMaps maps;
   THINSLAB_RETURN_IF_ERROR(FitTau(fit, data, &maps, summary).WithContext(session_dir));
+  // Split-half consistency (issue #24): the noise part of sigma_tau is what two fits of disjoint
+  // halves of the frames must agree within.
+  nlohmann::json consistency;
+  if (!run.split_half_check) {
+    consistency = {{"skipped", "--split-half-check false"}};
+  } else if (data.halves.size() != 2) {
+    consistency = {{"skipped", std::to_string(data.num_shadow_frames) +
+                                   " shadow frame(s): the check needs at least 2 (capture frames_per_state >= 2)"}};
+  } else {
+    std::vector<TauMaps> half_maps(2);
+    std::string failed;
+    for (int k = 0; k < 2 && failed.empty(); ++k) {
+      RectifiedShadowMaps half = data;
+      half.halves.clear();
+      half.shadow = data.halves[k].shadow;
+      half.shadow_variance = data.halves[k].shadow_variance;
+      half.reference = data.halves[k].reference;
+      half.reference_variance = data.halves[k].reference_variance;
+      TauFitSummary half_summary;
+      const Status fitted = FitTau(fit, half, &half_maps[k], &half_summary);
+      if (!fitted.ok()) failed = (k == 0 ? "even frames: " : "odd frames: ") + fitted.message();
+    }
+    if (!failed.empty()) {
+      consistency = {{"skipped", "a half did not fit: " + failed}};
+    } else {
+      SplitHalfConsistency c = CompareSplitHalves(half_maps[0].tau, half_maps[0].sigma_tau_noise, half_maps[1].tau,
+                                                  half_maps[1].sigma_tau_noise);
+      c.shared_reference = data.halves_share_reference;
+      consistency = nlohmann::json::parse(c.ToJson());
+      if (c.pixels >= 100 && (c.rms_z > 1.5 || c.rms_z < 1 / 1.5)) {
+        std::ostringstream msg;
+        msg.precision(3);
+        msg << "split-half consistency: the fits of the even and the odd frames differ by " << c.rms_z
+            << " times what the noise part of sigma_tau says (RMS over " << c.pixels
+            << " pixels; 1 expected): the frames' noise model is off (gain, read noise; docs/format.md 4.1) or the "
+               "light changed between frames";
+        summary->warnings.push_back(msg.str());
+      }
+    }
+  }
+  for (const std::string& w : summary->warnings) std::cerr << "warning: " << session_dir << ": " << w << "\n";
   // Validation shadow frames (issue #23 section 4): the same light state as the fitted ones, so
   // the prediction is the fitted shadow the map reproduces, with that shadow's noise (the
   // reference cancels); the comparison shows repeatability (a moved sample, drifting light) and
@@ -151,7 +205,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_falsecolor.png"), tau, 0, &status, color));
   color.label = "tau Eq.7";
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_plain_falsecolor.png"), tau, 1, &status, color));
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value, validation)));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value, validation, consistency)));
   THINSLAB_RETURN_IF_ERROR(
       WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport() + validation_text));
   if (!validation_text.empty()) std::cout << validation_text;
@@ -204,6 +258,10 @@ void AddFitTauOptions(OptionParser* parser, FitTauRun* run) {
   parser->AddDouble("tau-max", &fit.tau_max, "largest tau; darker pixels are clamped and flagged");
   parser->AddDouble("min-reference-fraction", &fit.min_reference_fraction, "dark mask threshold (of median)");
   parser->AddDouble("max-sigma-tau", &fit.max_sigma_tau, "tau noise above this: status 1 (dark)");
+  parser->AddDouble("max-mixed-tau-step", &fit.max_mixed_tau_step,
+                    "tau change across one camera footprint above which a pixel is mixed (status 6)");
+  parser->AddBool("split-half-check", &run->split_half_check,
+                  "also fit the even and odd shadow frames apart and compare them (summary.json consistency)");
   parser->AddDouble("smoothness-sigma-tau", &fit.smoothness_sigma_tau, "Huber smoothness prior scale; 0 = off");
   parser->AddInt("max-outer-iterations", &fit.max_outer_iterations, "scatter fixed-point iterations");
   parser->AddDouble("kernel-max-angle-deg", &fit.kernel_max_angle_deg, "largest scattering angle modelled");

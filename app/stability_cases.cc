@@ -81,6 +81,14 @@ Status RunTauStabilityCase(const TauStabilityCase& test_case, const std::string&
 
   Image maps;
   THINSLAB_RETURN_IF_ERROR(ReadExr(JoinPath(fit_dir, "tau.exr"), &maps));
+  {
+    std::string text;
+    THINSLAB_RETURN_IF_ERROR(ReadFileToString(JoinPath(fit_dir, "summary.json"), &text));
+    const nlohmann::json summary = nlohmann::json::parse(text, nullptr, false);
+    if (summary.is_object() && summary.contains("consistency") && summary["consistency"].contains("rms_z")) {
+      result->consistency_rms_z = summary["consistency"]["rms_z"].get<double>();
+    }
+  }
   const int tau_c = maps.ChannelIndex("tau"), plain_c = maps.ChannelIndex("tau_plain"),
             status_c = maps.ChannelIndex("status"), sigma_c = maps.ChannelIndex("sigma_tau");
   if (tau_c < 0 || plain_c < 0 || status_c < 0 || sigma_c < 0) {
@@ -102,7 +110,7 @@ Status RunTauStabilityCase(const TauStabilityCase& test_case, const std::string&
       ++result->pixels;
       const float code = maps.at(x, y, status_c);
       const double t_true = truth.at(x, y);
-      if (!(code == std::round(code)) || code < 0 || code > static_cast<float>(TauPixelStatus::kNextToClamped)) {
+      if (!(code == std::round(code)) || code < 0 || code > static_cast<float>(TauPixelStatus::kMixed)) {
         ++result->invalid_status;
         continue;
       }
@@ -116,11 +124,14 @@ Status RunTauStabilityCase(const TauStabilityCase& test_case, const std::string&
           result->clamped_below_tau_max += t_true < tau_max - 0.5;
           continue;
         case TauPixelStatus::kNextToClamped: ++result->next_to_clamped; continue;
+        case TauPixelStatus::kMixed: ++result->mixed; continue;
       }
       ++result->ok;
       result->ok_beyond_tau_max += t_true > tau_max;
       const double error = maps.at(x, y, tau_c) - t_true;
       if (!std::isfinite(error)) continue;  // Counted in non_finite_values.
+      result->within_1_sigma += std::abs(error) <= maps.at(x, y, sigma_c);
+      result->within_2_sigma += std::abs(error) <= 2 * maps.at(x, y, sigma_c);
       sum += error;
       sum_sq += Sqr(error);
       sum_sq_plain += Sqr(maps.at(x, y, plain_c) - t_true);

@@ -37,7 +37,11 @@ struct TauStabilityResult {
   Status pipeline;  // Not ok = the pipeline refused the capture, with a message.
   TauFitSummary summary;
   // From the written tau.exr (all zero when the pipeline refused).
-  int64_t pixels = 0, ok = 0, dark = 0, saturated = 0, outside = 0, clamped = 0, next_to_clamped = 0;
+  int64_t pixels = 0, ok = 0, dark = 0, saturated = 0, outside = 0, clamped = 0, next_to_clamped = 0, mixed = 0;
+  // Status-ok pixels whose error is within 1 and 2 sigma_tau (coverage, issue #24).
+  int64_t within_1_sigma = 0, within_2_sigma = 0;
+  // summary.json consistency.rms_z (split-half check; -1 when it was skipped).
+  double consistency_rms_z = -1;
   int64_t non_finite_values = 0;    // NaN or inf in any channel of tau.exr.
   int64_t invalid_status = 0;       // Status values that are not a TauPixelStatus code.
   // Over status-ok pixels: error of the "tau" channel against ground truth.

@@ -70,7 +70,7 @@ Status RunTauAxis(const std::string& out_dir, const std::string& axis, const std
   std::ofstream csv(out_dir + "/tau_" + axis + ".csv");
   csv << axis << ",fitted,pixels,ok,dark,dark_noise,saturated,outside,clamped,next_to_clamped,non_finite,"
       << "invalid_status,rms_abs_error,rms_sigma_tau,mean_error,max_abs_error,rms_abs_error_plain,"
-      << "rms_abs_error_realigned,ok_beyond_tau_max,clamped_below_tau_max,rms_normalized_residual,"
+      << "rms_abs_error_realigned,ok_beyond_tau_max,clamped_below_tau_max,split_half_rms_z,"
       << "mean_scattered_fraction,seconds,message\n";
   const std::string work = out_dir + "/work_" + axis;
   for (double v : values) {
@@ -93,7 +93,7 @@ Status RunTauAxis(const std::string& out_dir, const std::string& axis, const std
                   static_cast<long long>(r.non_finite_values), static_cast<long long>(r.invalid_status),
                   r.rms_abs_error, r.rms_sigma_tau, r.mean_error, r.max_abs_error, r.rms_abs_error_plain,
                   r.rms_abs_error_realigned, static_cast<long long>(r.ok_beyond_tau_max),
-                  static_cast<long long>(r.clamped_below_tau_max), r.summary.rms_normalized_residual,
+                  static_cast<long long>(r.clamped_below_tau_max), r.consistency_rms_z,
                   r.summary.mean_scattered_fraction, seconds,
                   CsvText(r.pipeline.ok() ? r.summary.message : r.pipeline.message()).c_str());
     csv << line;

@@ -110,6 +110,32 @@ Image BoardRectifier::RectifyAny(const Image& mask) const {
   return out;
 }
 
+Image CameraFootprintM(const CameraInfo& camera, const BoardGrid& grid) {
+  Image out(grid.width_px, grid.height_px);
+  for (int j = 0; j < grid.height_px; ++j) {
+    for (int i = 0; i < grid.width_px; ++i) {
+      Eigen::Vector2d uv[4];  // Corners in order around the square.
+      bool ok = true;
+      for (int c = 0; c < 4 && ok; ++c) {
+        const int dx = (c == 1 || c == 2) ? 1 : 0, dy = c >= 2 ? 1 : 0;
+        const Eigen::Vector3d corner(grid.grid_min_m.x() + (i + dx) * grid.pixel_pitch_m,
+                                     grid.grid_min_m.y() + (j + dy) * grid.pixel_pitch_m, grid.plane_z_m);
+        ok = ProjectSamplePoint(camera, corner, &uv[c]);
+      }
+      if (!ok) continue;
+      double area = 0;  // Shoelace formula over the projected quadrilateral.
+      for (int c = 0; c < 4; ++c) {
+        const Eigen::Vector2d& a = uv[c];
+        const Eigen::Vector2d& b = uv[(c + 1) % 4];
+        area += a.x() * b.y() - b.x() * a.y();
+      }
+      area = std::abs(area) / 2;
+      if (area > 0 && std::isfinite(area)) out.at(i, j) = static_cast<float>(grid.pixel_pitch_m / std::sqrt(area));
+    }
+  }
+  return out;
+}
+
 bool CameraRayOnPlane(const CameraInfo& camera, const Eigen::Vector2d& pixel, double plane_z_m, Eigen::Vector2d* xy) {
   const Rigid3d sample_from_cam = camera.cam_from_sample.Inverse();
   const Eigen::Vector3d eye = sample_from_cam.translation;

@@ -40,6 +40,12 @@ bool CameraRayOnPlane(const CameraInfo& camera, const Eigen::Vector2d& pixel, do
 // on the grid's plane, or -1 (behind the camera, or off the grid): entry (k n + s) n + t.
 std::vector<int> MapPixelOfCameraPixels(const CameraInfo& camera, const BoardGrid& grid, int subsamples = 1);
 
+// The camera's footprint on the grid's plane per map pixel: the side (m) of the board square
+// one camera pixel covers there, pitch / sqrt(area in camera pixels of the map pixel's
+// projected square); 0 where a corner does not project. Larger than the pitch: the map is finer
+// than the camera resolves (neighbouring map pixels share camera pixels).
+Image CameraFootprintM(const CameraInfo& camera, const BoardGrid& grid);
+
 // Precomputed (camera pixel, weight) lists per map pixel: the share of the map pixel's in-image
 // sub-samples that fall in each camera pixel.
 class BoardRectifier {

@@ -77,6 +77,16 @@ TEST(MapPixelOfCameraPixels, SubPixelRaysTileTheGridOnce) {
   for (int c = 0; c < 64; ++c) EXPECT_EQ(hits[c], 1) << "map pixel " << c;
 }
 
+// The camera's footprint on the board: what one nadir camera pixel covers, whether it is larger
+// (2 mm) or smaller (0.25 mm) than the 1 mm map pixel.
+TEST(CameraFootprintM, IsTheBoardSideOfOneCameraPixel) {
+  for (double footprint_m : {2 * kMapPitchM, 0.25 * kMapPitchM}) {
+    const Image footprint = CameraFootprintM(NadirCamera(footprint_m), Grid());
+    ASSERT_EQ(footprint.width(), 8);
+    for (float f : footprint.data()) EXPECT_NEAR(f, footprint_m, 1e-9) << footprint_m;
+  }
+}
+
 TEST(BoardRectifier, VarianceOfOneCameraPixelIsItsOwn) {
   const BoardRectifier rectifier(NadirCamera(2 * kMapPitchM), Grid());
   const Image variance(32, 32, 3.0f);

@@ -203,8 +203,15 @@ Status ResolveFrameNoise(const std::string& session_dir, const Session& session,
   const bool integer = !camera.linear_frames() && camera.bit_depth <= 16;
   NoiseSamples samples;
   size_t pairs = 0;
+  // Repeated dark frames alone span no signal: they give the floor but not the shot-noise slope
+  // (which came out 0: a single float exposure per light state with two darks had a sigma_tau 20x
+  // too small). Without a repeated light state the single-frame estimate is used instead.
+  bool light_pair = false;
   for (const auto& [key, frames] : states) {
-    if (frames.size() < 2 || pairs >= kMaxFrames) continue;
+    if (frames.size() >= 2 && std::get<0>(key) != "dark") light_pair = true;
+  }
+  for (const auto& [key, frames] : states) {
+    if (frames.size() < 2 || pairs >= kMaxFrames || !light_pair) continue;
     Image a, b;
     THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *frames[0], &a));
     THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *frames[1], &b));

@@ -184,6 +184,7 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   grid.supersample = options.supersample;
   const BoardRectifier rectifier(camera, grid);
   maps->outside = rectifier.outside();
+  maps->camera_footprint_m = CameraFootprintM(camera, grid);
   maps->shadow = rectifier.Rectify(shadow.mean_dn_per_us);
   // Sub-samples share camera pixels: the variance of their mean counts each distinct camera
   // pixel once, with the weight of the sub-samples it holds (camera pixels are independent).
@@ -197,6 +198,34 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
     }
   }
   maps->saturated = rectifier.RectifyAny(saturated);
+  if (options.split_halves && shadow_frames.size() >= 2) {
+    // Alternate frames, so a slow drift of the light falls into both halves alike.
+    auto half_of = [](const std::vector<const FrameRecord*>& frames, size_t parity) {
+      std::vector<const FrameRecord*> out;
+      for (size_t k = parity; k < frames.size(); k += 2) out.push_back(frames[k]);
+      return out;
+    };
+    maps->halves_share_reference = reference_frames.size() < 2;
+    for (size_t parity = 0; parity < 2; ++parity) {
+      AveragedFrames half;
+      THINSLAB_RETURN_IF_ERROR(AverageFrames(session_dir, session, camera, response, half_of(shadow_frames, parity),
+                                             dark, maps->noise, &half));
+      RectifiedShadowMaps::Half out;
+      out.shadow = rectifier.Rectify(half.mean_dn_per_us);
+      out.shadow_variance = rectifier.RectifyVariance(half.variance);
+      if (!maps->halves_share_reference) {
+        AveragedFrames half_reference;
+        THINSLAB_RETURN_IF_ERROR(AverageFrames(session_dir, session, camera, response,
+                                               half_of(reference_frames, parity), dark, maps->noise, &half_reference));
+        out.reference = rectifier.Rectify(half_reference.mean_dn_per_us);
+        out.reference_variance = rectifier.RectifyVariance(half_reference.variance);
+      } else {
+        out.reference = maps->reference;
+        out.reference_variance = maps->reference_variance;
+      }
+      maps->halves.push_back(std::move(out));
+    }
+  }
   if (!validation_frames.empty()) {
     AveragedFrames validation;
     THINSLAB_RETURN_IF_ERROR(

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "calib/frame_noise.h"
 #include "calib/session_calibration.h"
@@ -29,6 +30,9 @@ struct ShadowMapPreparationOptions {
   // Also keep the averaged frames in camera pixels (RectifiedShadowMaps::camera_*), for
   // predictions imaged in the camera (`thinslab predict`).
   bool keep_camera_frames = false;
+  // Also average alternate shadow frames (and reference frames, when there are >= 2) into two
+  // halves (RectifiedShadowMaps::halves), for the split-half consistency of sigma_tau.
+  bool split_halves = false;
 
   bool Check(std::string* error) const;
 };
@@ -48,6 +52,16 @@ struct RectifiedShadowMaps {
   // them, else the fitted ones'; saturation also where the reference saturated).
   Image camera_reference, camera_reference_variance, camera_shadow, camera_shadow_variance, camera_shadow_saturated;
   Image outside;             // 1 where the board point is outside the camera image.
+  // Side of the board square one camera pixel covers, per map pixel (calib/board_rectification.h).
+  Image camera_footprint_m;
+  // With split_halves and >= 2 shadow frames: the shadow of the even and of the odd frames (and
+  // the reference likewise when it has >= 2 frames; else both halves hold the whole reference,
+  // reference_shared), rectified as above. Empty otherwise.
+  struct Half {
+    Image shadow, shadow_variance, reference, reference_variance;
+  };
+  std::vector<Half> halves;
+  bool halves_share_reference = false;
   // calib/flat_field.exr rectified (unitless, 0 where invalid); empty when the session has none.
   Image flat;
   Eigen::Vector2d region_min_m = Eigen::Vector2d::Zero();

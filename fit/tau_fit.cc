@@ -35,6 +35,8 @@ bool TauFitOptions::Check(std::string* error) const {
     msg << "TauFitOptions::min_reference_fraction = " << min_reference_fraction << ". Violated constraint: (0, 1)";
   } else if (!(max_sigma_tau > 0)) {
     msg << "TauFitOptions::max_sigma_tau = " << max_sigma_tau << ". Violated constraint: > 0";
+  } else if (!(max_mixed_tau_step > 0)) {
+    msg << "TauFitOptions::max_mixed_tau_step = " << max_mixed_tau_step << ". Violated constraint: > 0";
   } else if (!(smoothness_sigma_tau >= 0)) {
     msg << "TauFitOptions::smoothness_sigma_tau = " << smoothness_sigma_tau << ". Violated constraint: >= 0";
   } else if (max_outer_iterations < 1) {
@@ -73,10 +75,16 @@ std::string TauFitSummary::FullReport() const {
       << "pixels outside:   " << pixels_outside << " (" << pct(pixels_outside) << " %)\n"
       << "pixels clamped:   " << pixels_clamped << " (" << pct(pixels_clamped) << " %)\n"
       << "pixels next to clamped: " << pixels_next_to_clamped << " (" << pct(pixels_next_to_clamped) << " %)\n"
+      << "pixels mixed:     " << pixels_mixed << " (" << pct(pixels_mixed) << " %)\n"
+      << "camera footprint on the board [mm]: median " << camera_footprint_median_m * 1e3 << " (" 
+      << camera_footprint_min_m * 1e3 << " .. " << camera_footprint_max_m * 1e3 << "), map pitch "
+      << pixel_pitch_m * 1e3 << " mm, " << camera_pixels_per_map_pixel << " camera pixels per map pixel\n"
+      << "median sigma_tau parts (ok pixels): noise " << median_sigma_noise << ", reference " << median_sigma_reference
+      << ", multiple scattering " << median_sigma_model << ", resolution " << median_sigma_resolution << "\n"
       << "final max tau update: " << final_max_update_tau << "\n"
-      << "rms normalized residual: " << rms_normalized_residual << "\n"
       << "mean scattered fraction of measured light: " << mean_scattered_fraction << "\n"
       << "time plain / refine / total [s]: " << plain_s << " / " << refine_s << " / " << total_s << "\n";
+  for (const std::string& w : warnings) out << "warning: " << w << "\n";
   return out.str();
 }
 
@@ -94,8 +102,11 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
 constexpr int kMaxBasis = 6;
 using CleanBasis = std::function<void(int pixel, double* b)>;
 
-Status FitCleanReference(const Image& shadow, const std::vector<uint8_t>& usable, int num_basis,
-                         const CleanBasis& basis, const std::string& name, Image* reference, int64_t* clean_pixels) {
+// *relative_misfit: the RMS of (shadow - fit) / fit over the pixels kept as clean, beyond what
+// their noise (`variance`, may be empty) explains: the surface's own error as a reference.
+Status FitCleanReference(const Image& shadow, const Image& variance, const std::vector<uint8_t>& usable,
+                         int num_basis, const CleanBasis& basis, const std::string& name, Image* reference,
+                         int64_t* clean_pixels, double* relative_misfit) {
   const int w = shadow.width(), h = shadow.height();
   std::vector<int> keep;
   for (int i = 0; i < w * h; ++i) {
@@ -150,6 +161,16 @@ Status FitCleanReference(const Image& shadow, const std::vector<uint8_t>& usable
     for (int c = 0; c < num_basis; ++c) fit += b[c] * coef(c);
     reference->data()[i] = static_cast<float>(fit);
   }
+  double residual2 = 0, noise2 = 0;
+  int64_t counted = 0;
+  for (int i : keep) {
+    const double fit = reference->data()[i];
+    if (!(fit > 0)) continue;
+    residual2 += Sqr((shadow.data()[i] - fit) / fit);
+    if (!variance.empty()) noise2 += variance.data()[i] / Sqr(fit);
+    ++counted;
+  }
+  *relative_misfit = counted > 0 ? std::sqrt(std::max(0.0, (residual2 - noise2) / counted)) : 0;
   return Status::Ok();
 }
 
@@ -197,7 +218,8 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       const double x = ((i % w) + 0.5) / w - 0.5, y = ((i / w) + 0.5) / h - 0.5;
       b[0] = 1; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
     };
-    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, usable, 6, quadratic, "auto", &reference, &summary->pixels_judged_clean));
+    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, data.shadow_variance, usable, 6, quadratic, "auto", &reference,
+                                               &summary->pixels_judged_clean, &summary->reference_relative_sigma));
   } else {
     if (data.flat.empty()) {
       return Status::Error("FitTau: TauFitOptions::reference = 'flat' but the session has no calib/flat_field.exr; "
@@ -210,7 +232,8 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       usable[i] = status[i] == 0 && data.shadow.data()[i] > 0;
     }
     auto flat = [&data](int i, double* b) { b[0] = data.flat.data()[i]; };
-    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, usable, 1, flat, "flat", &reference, &summary->pixels_judged_clean));
+    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, data.shadow_variance, usable, 1, flat, "flat", &reference,
+                                               &summary->pixels_judged_clean, &summary->reference_relative_sigma));
   }
   std::vector<float> ref_values;
   for (size_t i = 0; i < n; ++i) {
@@ -354,20 +377,23 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   summary->refine_s = Seconds(t_plain, t_refine);
 
   // Final status codes and sigma_tau. Gu Eq. 5 gives d tau = -d(m - S) / e^{-tau}, with S held
-  // fixed (its noise is averaged over the whole kernel). Two terms:
+  // fixed (its noise is averaged over the whole kernel). Terms, in quadrature:
   //  - noise: sigma_m / e^{-tau}; above max_sigma_tau the pixel is dark;
+  //  - reference (auto / flat): the clean surface's relative misfit (d tau = d I_clean / I_clean);
   //  - model: Eq. 6 is single scattering, but once-scattered light is scattered again with
   //    probability ~ albedo (1 - e^{-tau}) before it leaves the layer, so the unmodelled light
   //    is ~ albedo (1 - e^{-tau}) S. Not in Gu et al. 2007; on the simulated rig (all orders)
   //    it matches the read-low bias of uniform layers within 20 % up to tau 2.5 and
-  //    underestimates it by up to 1.5x at tau 3-3.8 (docs/stability.md).
-  std::vector<double> sigma_tau(n, 0.0);
+  //    underestimates it by up to 1.5x at tau 3-3.8 (docs/stability.md);
+  //  - resolution (below, from the map's gradient).
+  std::vector<double> sigma_tau(n, 0.0), sigma_noise_of(n, 0.0), sigma_model_of(n, 0.0);
   for (size_t i = 0; i < n; ++i) {
     if (status[i] != 0) continue;
     const double transmission = std::max(std::exp(-tau[i]), min_ratio);
     const double sigma_noise = sigma_m[i] / transmission;
     const double unmodelled = options.layer_albedo * (1 - std::exp(-std::max(tau[i], 0.0))) * std::max(scattered[i], 0.0);
-    sigma_tau[i] = std::hypot(sigma_noise, unmodelled / transmission);
+    sigma_noise_of[i] = sigma_noise;
+    sigma_model_of[i] = unmodelled / transmission;
     if (tau[i] >= options.tau_max - 1e-9) {
       status[i] = static_cast<uint8_t>(TauPixelStatus::kClamped);
     } else if (sigma_noise > options.max_sigma_tau) {
@@ -396,23 +422,101 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       if (beside_clamped) final_status[i] = static_cast<uint8_t>(TauPixelStatus::kNextToClamped);
     }
   }
+  // Resolution (issue #24): a map pixel is measured through the camera pixels over it. Where the
+  // camera's footprint f on the board exceeds the map pitch p, the camera pixel a map pixel takes
+  // is centred up to f / 2 from it (tau error G f / sqrt(12) for a local gradient G, RMS over the
+  // offset); and over the larger footprint L = max(f, p), -ln of the mean transmission reads
+  // low by about (G L)^2 / 24 (half the variance of tau across it). G is the central difference
+  // of the fitted map over measured neighbours (it cannot see texture the camera does not
+  // resolve). Beyond G L > max_mixed_tau_step the pixel is mixed.
+  const double p = data.pixel_pitch_m;
+  auto measured_code = [&](uint8_t c) {
+    return c == 0 || c == clamped_code || c == static_cast<uint8_t>(TauPixelStatus::kNextToClamped);
+  };
+  auto tau_at = [&](int x, int y, double* value) {
+    if (x < 0 || y < 0 || x >= w || y >= h) return false;
+    const size_t j = static_cast<size_t>(y) * w + x;
+    if (!measured_code(final_status[j])) return false;
+    *value = final_status[j] == clamped_code ? options.tau_max : tau[j];
+    return true;
+  };
+  auto derivative = [&](int x, int y, int dx, int dy, double centre) {
+    double a = 0, b = 0;
+    const bool has_a = tau_at(x - dx, y - dy, &a), has_b = tau_at(x + dx, y + dy, &b);
+    if (has_a && has_b) return (b - a) / (2 * p);
+    if (has_b) return (b - centre) / p;
+    if (has_a) return (centre - a) / p;
+    return 0.0;
+  };
+  std::vector<double> sigma_resolution_of(n, 0.0);
+  std::vector<float> footprints;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      const double f_raw = data.camera_footprint_m.empty() ? 0.0 : data.camera_footprint_m.data()[i];
+      if (f_raw > 0 && status[i] != static_cast<uint8_t>(TauPixelStatus::kOutside)) footprints.push_back(static_cast<float>(f_raw));
+      if (!measured_code(final_status[i]) || final_status[i] == clamped_code) continue;
+      const double f = f_raw > 0 ? f_raw : p;
+      const double gradient = std::hypot(derivative(x, y, 1, 0, tau[i]), derivative(x, y, 0, 1, tau[i]));
+      const double step = gradient * std::max(f, p);
+      sigma_resolution_of[i] = std::hypot(gradient * f / std::sqrt(12.0), Sqr(step) / 24);
+      if (final_status[i] == 0 && step > options.max_mixed_tau_step) {
+        final_status[i] = static_cast<uint8_t>(TauPixelStatus::kMixed);
+      }
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (!measured_code(final_status[i]) && final_status[i] != static_cast<uint8_t>(TauPixelStatus::kMixed)) continue;
+    sigma_tau[i] = std::sqrt(Sqr(sigma_noise_of[i]) + Sqr(summary->reference_relative_sigma) +
+                             Sqr(sigma_model_of[i]) + Sqr(sigma_resolution_of[i]));
+  }
+  summary->pixel_pitch_m = p;
+  if (!footprints.empty()) {
+    std::sort(footprints.begin(), footprints.end());
+    summary->camera_footprint_min_m = footprints.front();
+    summary->camera_footprint_max_m = footprints.back();
+    summary->camera_footprint_median_m = footprints[footprints.size() / 2];
+    summary->camera_pixels_per_map_pixel = Sqr(p / summary->camera_footprint_median_m);
+    if (summary->camera_footprint_median_m > p) {
+      std::ostringstream msg;
+      msg.precision(3);
+      msg << "the map pitch (" << p * 1e3 << " mm) is finer than the camera resolves: one camera pixel covers "
+          << summary->camera_footprint_median_m * 1e3 << " mm of the board (median; "
+          << summary->camera_footprint_min_m * 1e3 << " .. " << summary->camera_footprint_max_m * 1e3
+          << " mm), so neighbouring map pixels share camera pixels and texture finer than that is not measured; "
+             "use rig.sample.pixel_pitch_m >= the footprint or a closer or higher-resolution camera";
+      summary->warnings.push_back(msg.str());
+    }
+  }
+  {
+    std::vector<float> noise, model, resolution;
+    for (size_t i = 0; i < n; ++i) {
+      if (final_status[i] != 0) continue;
+      noise.push_back(static_cast<float>(sigma_noise_of[i]));
+      model.push_back(static_cast<float>(sigma_model_of[i]));
+      resolution.push_back(static_cast<float>(sigma_resolution_of[i]));
+    }
+    summary->median_sigma_noise = Median(noise);
+    summary->median_sigma_model = Median(model);
+    summary->median_sigma_resolution = Median(resolution);
+    summary->median_sigma_reference = summary->reference_relative_sigma;
+  }
 
   // Outputs, counts and residuals.
   maps->tau = Image(w, h, {"tau", "tau_plain", "status", "sigma_tau"});
+  maps->sigma_tau_noise = Image(w, h);
   maps->reference = reference;
-  double sum_sq = 0, sum_scatter = 0;
+  double sum_scatter = 0;
   for (size_t i = 0; i < n; ++i) {
     const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
     const uint8_t code = final_status[i];
     double value = 0, plain = 0, sigma = 0;
-    const bool measured = code == 0 || code == clamped_code ||
-                          code == static_cast<uint8_t>(TauPixelStatus::kNextToClamped);
+    const bool measured = measured_code(code) || code == static_cast<uint8_t>(TauPixelStatus::kMixed);
     if (measured) {
       value = tau[i];
       plain = tau_plain.data()[i];
       sigma = sigma_tau[i];
-      const double model = std::exp(-value) + scattered[i];
-      sum_sq += Sqr((m[i] - model) / sigma_m[i]);
+      maps->sigma_tau_noise.data()[i] = static_cast<float>(sigma_noise_of[i]);
       sum_scatter += scattered[i] / std::max(m[i], 1e-6);
     }
     switch (static_cast<TauPixelStatus>(code)) {
@@ -422,6 +526,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       case TauPixelStatus::kOutside: ++summary->pixels_outside; break;
       case TauPixelStatus::kClamped: ++summary->pixels_clamped; value = plain = options.tau_max; break;
       case TauPixelStatus::kNextToClamped: ++summary->pixels_next_to_clamped; break;
+      case TauPixelStatus::kMixed: ++summary->pixels_mixed; break;
     }
     CHECK(std::isfinite(value) && std::isfinite(plain) && std::isfinite(sigma));
     maps->tau.at(x, y, 0) = static_cast<float>(value);
@@ -429,8 +534,8 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     maps->tau.at(x, y, 2) = static_cast<float>(code);
     maps->tau.at(x, y, 3) = static_cast<float>(sigma);
   }
-  const int64_t measured = summary->pixels_fitted + summary->pixels_clamped + summary->pixels_next_to_clamped;
-  summary->rms_normalized_residual = measured > 0 ? std::sqrt(sum_sq / measured) : 0;
+  const int64_t measured =
+      summary->pixels_fitted + summary->pixels_clamped + summary->pixels_next_to_clamped + summary->pixels_mixed;
   summary->mean_scattered_fraction = measured > 0 ? sum_scatter / measured : 0;
   summary->total_s = Seconds(t_start, Clock::now());
   if (summary->pixels_fitted == 0) {
@@ -439,7 +544,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     msg << "no pixel could be fitted (of " << n << ": " << summary->pixels_dark << " dark, "
         << summary->pixels_saturated << " saturated, " << summary->pixels_outside << " outside the camera view, "
         << summary->pixels_clamped << " clamped at tau_max = " << options.tau_max << ", "
-        << summary->pixels_next_to_clamped << " next to clamped)";
+        << summary->pixels_next_to_clamped << " next to clamped, " << summary->pixels_mixed << " mixed)";
     summary->message = msg.str();
     return Status::Error("FitTau: " + summary->message);
   }

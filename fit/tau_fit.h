@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "calib/shadow_map_preparation.h"
 #include "core/image.h"
@@ -30,6 +31,10 @@ enum class TauPixelStatus : uint8_t {
   // Next to a clamped pixel: the camera pixels behind this one also see the bright side of the
   // edge, so tau reads far too low (a lower bound; docs/stability.md measured 2.5 for 5).
   kNextToClamped = 5,
+  // Mixed (issue #24): tau changes by more than TauFitOptions::max_mixed_tau_step across the
+  // larger of the map pixel and the camera's footprint, so the pixel reads -ln of a mean
+  // transmission over very different thicknesses (an edge, texture the camera does not resolve).
+  kMixed = 6,
 };
 
 struct TauFitOptions {
@@ -51,6 +56,10 @@ struct TauFitOptions {
   // Pixels whose tau noise (the shot and read noise part of sigma_tau) exceeds this are dark
   // too: under low light the map is noise, not a measurement (docs/stability.md).
   double max_sigma_tau = 0.05;
+  // Largest tau change across one footprint (the larger of the map pixel and the camera pixel's
+  // square on the board) of a status-ok pixel; beyond it the pixel is kMixed. At 0.5, a pixel
+  // half tau t, half t + 0.5 reads 0.03 low (-ln of the mean transmission).
+  double max_mixed_tau_step = 0.5;
   // Standard deviation (in tau) of neighbour differences under the smoothness prior, beyond
   // which the Huber loss turns linear. 0 disables the prior (closed-form per-pixel update).
   // Off by default: on the simulated rig it did not lower the error at default or at 10x less
@@ -66,6 +75,8 @@ struct TauFitOptions {
 
 struct TauMaps {
   Image tau;        // Channels: tau, tau_plain, status, sigma_tau.
+  // The frames' noise part of sigma_tau alone (the split-half check compares it).
+  Image sigma_tau_noise;
   // I_clean the map was fitted with (DN/us, rectified): the reference frames, or the clean
   // surface of reference "auto" / "flat". What a validation shadow is predicted from.
   Image reference;
@@ -79,12 +90,25 @@ struct TauFitSummary {
   int64_t pixels_total = 0, pixels_fitted = 0, pixels_dark = 0, pixels_saturated = 0,
           pixels_outside = 0, pixels_clamped = 0, pixels_next_to_clamped = 0;
   int64_t pixels_dark_noise = 0;  // Of pixels_dark: flagged because sigma_tau > max_sigma_tau.
+  int64_t pixels_mixed = 0;
+  // The camera's footprint on the board (calib/board_rectification.h) over the pixels in view:
+  // median, smallest, largest [m]; camera pixels per map pixel = (pitch / footprint)^2 at the
+  // median. 0 when unknown.
+  double camera_footprint_median_m = 0, camera_footprint_min_m = 0, camera_footprint_max_m = 0;
+  double camera_pixels_per_map_pixel = 0;
+  double pixel_pitch_m = 0;
+  // Reference "auto" / "flat": the clean surface's relative misfit to the pixels judged clean,
+  // beyond their noise (in sigma_tau as tau = -ln(I / I_clean) moves by d I_clean / I_clean).
+  double reference_relative_sigma = 0;
+  // Medians over status-ok pixels of the parts of sigma_tau (in quadrature): the frames' noise,
+  // the reference's misfit, the multiple scattering Eq. 6 leaves out, the resolution term.
+  double median_sigma_noise = 0, median_sigma_reference = 0, median_sigma_model = 0, median_sigma_resolution = 0;
+  std::vector<std::string> warnings;
   // Reference "auto" / "flat": the pixels the clean surface was fitted through (judged clean);
   // -1 for "frame" (clean-glass frames, no judgement).
   int64_t pixels_judged_clean = -1;
   int outer_iterations = 0;
   double final_max_update_tau = 0;
-  double rms_normalized_residual = 0;  // RMS of (m - model) / sigma_m over fitted pixels.
   double mean_scattered_fraction = 0;  // Mean S / m over fitted pixels.
   double plain_s = 0, refine_s = 0, total_s = 0;
 
@@ -95,8 +119,9 @@ struct TauFitSummary {
 
 // Fills maps->tau (width x height of the rectified grid). Never writes NaN: pixels that
 // cannot be measured get tau = 0 (or tau_max when clamped) and a status code; sigma_tau is the
-// 1-sigma uncertainty of tau: the frames' shot and read noise plus the light Eq. 6 leaves out
-// (multiple scattering), 0 where status is 1-3.
+// 1-sigma uncertainty of tau, in quadrature: the frames' shot and read noise, the clean
+// reference's misfit (auto / flat), the light Eq. 6 leaves out (multiple scattering) and the
+// resolution term (local tau gradient times the camera footprint); 0 where status is 1-3.
 Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, TauMaps* maps,
               TauFitSummary* summary);
 

@@ -118,13 +118,20 @@ TEST(CliValidationShadowLobe, TauMapsPredictValidationFramesAndOtherBoardDistanc
     EXPECT_GT(r["plain_relative_rms"].get<double>(), 1.5 * r["relative_rms"].get<double>()) << r.dump();
   }
 
+  // A map fitted without Eq. 6 misses by more than its own error bars allow and by far more
+  // than the refined map. (Before sigma_tau had its resolution term, 2026-12-05, its allowance
+  // was 0.0197 and the test asked for 3x; the resolution term, which the fitted and the
+  // predicted capture share through the same camera, now allows 0.055 for an error of 0.104.)
   RunThinslabOk("fit tau " + a + " --refine false --out " + (dir / "plain_fit"));
   RunThinslabOk("predict " + b + " --fit " + (dir / "plain_fit") + " --out " + (dir / "predict_plain"));
   const nlohmann::json plain_summary = ReadJsonFile(dir / "predict_plain/summary.json");
   const nlohmann::json& thick = Region(plain_summary["regions"], "thick");
   std::printf("predict at 10 mm from a map fitted without Eq. 6: thick relative RMS %.4f, allowed %.4f\n",
               thick["relative_rms"].get<double>(), Expected(thick));
-  EXPECT_GT(thick["relative_rms"].get<double>(), 3 * Expected(thick)) << thick.dump();
+  EXPECT_GT(thick["relative_rms"].get<double>(), Expected(thick)) << thick.dump();
+  EXPECT_GT(thick["relative_rms"].get<double>(),
+            5 * Region(predicted["regions"], "thick")["relative_rms"].get<double>())
+      << thick.dump();
 }
 
 TEST(CliValidationShadowLobe, LobeFitsPredictValidationBracketsAndOtherBoardDistances) {
