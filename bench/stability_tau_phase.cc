@@ -6,7 +6,7 @@
 // fitting (the failure boundaries). docs/stability.md reads its figures off them.
 //
 //   stability_tau_phase OUT_DIR [axis ...]
-//   axes: tau_level exposure pose g_value g_tau g_noise (default: all)
+//   axes: tau_level exposure pose g_value g_tau g_noise coverage (default: all)
 //   e.g. build-stab/bench/stability_tau_phase docs/stability
 #include <chrono>
 #include <cmath>
@@ -246,6 +246,154 @@ TauStabilityCase SpecksCase(const Image& specks) {
   return c;
 }
 
+// ---- coverage (issue #24 section 4) ----
+
+// Fraction of the status-ok estimates within 1 and 2 sigma of the truth, and the share of
+// estimates that are status ok, per capture made harder than the fitted model on purpose.
+struct CoveragePoint {
+  std::string fit, name;
+  double within_1 = 0, within_2 = 0, ok = 0;
+  int64_t estimates = 0;
+};
+
+Status RunTauCoverage(const std::string& out_dir, const Image& specks, std::vector<CoveragePoint>* points) {
+  const double patch_taus[4] = {0.5, 1, 2, 3};
+  struct Named {
+    std::string name;
+    std::function<void(TauStabilityCase*)> change;
+  };
+  const std::vector<Named> cases = {
+      {"nominal (specks, 320 x 240 camera, board 1 mm)", [](TauStabilityCase*) {}},
+      {"texture finer than the camera (80 x 60 camera)",
+       [](TauStabilityCase* c) {
+         c->sim.rig.camera_width_px = 80;
+         c->sim.rig.camera_height_px = 60;
+       }},
+      {"one linear float frame, value scale 1000, no gain",
+       [](TauStabilityCase* c) {
+         c->sim.rig.sensor.linear_float_frames = true;
+         c->sim.rig.sensor.value_scale = 1000;
+         c->sim.session.frames_per_state = 1;
+       }},
+      {"photon-starved: exposure x0.01", [](TauStabilityCase* c) { c->sim.session.exposure_time_us *= 0.01; }},
+      {"multiple scattering: albedo 0.9, board 5 mm",
+       [](TauStabilityCase* c) {
+         c->sim.rig.layer_albedo = 0.9;
+         c->sim.rig.board_distance_m = 5e-3;
+       }},
+      {"board 10 mm", [](TauStabilityCase* c) { c->sim.rig.board_distance_m = 10e-3; }},
+      {"uniform tau 2", [](TauStabilityCase* c) { c->tau_true = UniformTau(kTextureSize, kTextureSize, 2); }},
+      {"hard edges: patches tau 0.5-3",
+       [&](TauStabilityCase* c) { c->tau_true = PatchTau(kTextureSize, kTextureSize, patch_taus, 0); }},
+      {"reference judged from the shadow (auto)", [](TauStabilityCase* c) { c->run.fit.reference = "auto"; }},
+  };
+  const std::string work = out_dir + "/work_coverage";
+  for (const Named& named : cases) {
+    std::filesystem::remove_all(work);
+    TauStabilityCase c = SpecksCase(specks);
+    named.change(&c);
+    TauStabilityResult r;
+    THINSLAB_RETURN_IF_ERROR(RunTauStabilityCase(c, work, &r));
+    CoveragePoint p;
+    p.fit = "tau";
+    p.name = named.name;
+    p.estimates = r.ok;
+    p.within_1 = Fraction(r.within_1_sigma, r.ok);
+    p.within_2 = Fraction(r.within_2_sigma, r.ok);
+    p.ok = r.pipeline.ok() ? Fraction(r.ok, r.pixels - r.outside) : 0;
+    std::fprintf(stderr, "coverage tau, %s: %.3f / %.3f, ok %.3f (%s)\n", p.name.c_str(), p.within_1, p.within_2, p.ok,
+                 r.pipeline.ok() ? "fitted" : r.pipeline.message().c_str());
+    points->push_back(p);
+  }
+  std::filesystem::remove_all(work);
+  return Status::Ok();
+}
+
+// g: one estimate per capture, so coverage is over seeds of each case.
+Status RunGCoverage(const std::string& out_dir, int seeds, std::vector<CoveragePoint>* points) {
+  struct Named {
+    std::string name;
+    double tau, g;
+    std::function<void(PhaseStabilityCase*)> change;
+  };
+  const std::vector<Named> cases = {
+      {"g 0.2 (tau 0.3, albedo 0.3: multiple scattering)", 0.3, 0.2, [](PhaseStabilityCase*) {}},
+      {"g 0.5", 0.3, 0.5, [](PhaseStabilityCase*) {}},
+      {"g 0.8", 0.3, 0.8, [](PhaseStabilityCase*) {}},
+      {"g 0.8, tau 1 (more multiple scattering)", 1.0, 0.8, [](PhaseStabilityCase*) {}},
+      {"g 0.5, photon-starved single float exposure, no gain",
+       0.3, 0.5,
+       [](PhaseStabilityCase* c) {
+         c->sim.rig.sensor.linear_float_frames = true;
+         c->sim.rig.sensor.read_noise_e = 0;
+         c->sim.session.exposure_times_us = {200};
+       }},
+  };
+  const std::string work = out_dir + "/work_coverage_g";
+  for (const Named& named : cases) {
+    CoveragePoint p;
+    p.fit = "g";
+    p.name = named.name;
+    int64_t usable = 0, within_1 = 0, within_2 = 0;
+    for (int seed = 1; seed <= seeds; ++seed) {
+      std::filesystem::remove_all(work);
+      PhaseStabilityCase c;
+      c.sim = SmallLaserLobeRig(named.tau, named.g, 100 + seed);
+      c.fit.tau = named.tau;
+      named.change(&c);
+      PhaseStabilityResult r;
+      THINSLAB_RETURN_IF_ERROR(RunPhaseStabilityCase(c, work, &r));
+      const PhaseFitSummary& s = r.summary;
+      if (!r.pipeline.ok() || !s.IsUsable()) continue;
+      ++usable;
+      within_1 += std::abs(s.g - named.g) <= s.sigma_g;
+      within_2 += std::abs(s.g - named.g) <= 2 * s.sigma_g;
+    }
+    p.estimates = usable;
+    p.within_1 = Fraction(within_1, usable);
+    p.within_2 = Fraction(within_2, usable);
+    p.ok = Fraction(usable, seeds);
+    std::fprintf(stderr, "coverage g, %s: %.3f / %.3f, ok %.3f\n", p.name.c_str(), p.within_1, p.within_2, p.ok);
+    points->push_back(p);
+  }
+  std::filesystem::remove_all(work);
+  return Status::Ok();
+}
+
+Status WriteCoverage(const std::string& out_dir, const std::vector<CoveragePoint>& points) {
+  std::ofstream csv(out_dir + "/coverage.csv");
+  csv << "fit,case,index,estimates,within_1_sigma,within_2_sigma,ok_fraction\n";
+  std::vector<PlotPanel> panels;
+  for (const std::string fit : {"tau", "g"}) {
+    PlotSeries one = Series("within 1 sigma", kBlue, false), two = Series("within 2 sigma", kGreen, false),
+               ok = Series("status ok / usable", kGrey, false);
+    int index = 0;
+    for (const CoveragePoint& p : points) {
+      if (p.fit != fit) continue;
+      ++index;
+      csv << p.fit << "," << CsvText(p.name) << "," << index << "," << p.estimates << "," << p.within_1 << ","
+          << p.within_2 << "," << p.ok << "\n";
+      one.x.push_back(index);
+      one.y.push_back(p.within_1);
+      two.x.push_back(index);
+      two.y.push_back(p.within_2);
+      ok.x.push_back(index);
+      ok.y.push_back(p.ok);
+    }
+    if (index == 0) continue;
+    PlotPanel panel;
+    panel.y_label = fit + " coverage (cases: coverage.csv)";
+    panel.series = {one, two, ok, HorizontalLine("goal 1 sigma (60 %)", 0.6, 1, index, kRed),
+                    HorizontalLine("goal 2 sigma (90 %)", 0.9, 1, index, kOrange)};
+    panel.legend_bottom_left = true;
+    panels.push_back(panel);
+  }
+  PlotOptions options;
+  options.title = "coverage of sigma on captures harder than the fitted models (issue #24)";
+  options.x_label = "case (docs/stability.md, coverage.csv)";
+  return WritePlotPng(out_dir + "/coverage.png", panels, options);
+}
+
 Status Run(const std::string& out_dir, const std::set<std::string>& axes) {
   auto want = [&](const std::string& a) { return axes.empty() || axes.count(a) > 0; };
   ContaminationPatternOptions pattern;
@@ -325,6 +473,12 @@ Status Run(const std::string& out_dir, const std::set<std::string>& axes) {
     THINSLAB_RETURN_IF_ERROR(
         WriteGChart(out_dir + "/g_tau.png", "g fit (Gu Eq. 8): layer tau, g 0.8", "log10 tau_true", points));
   }
+  if (want("coverage")) {
+    std::vector<CoveragePoint> points;
+    THINSLAB_RETURN_IF_ERROR(RunTauCoverage(out_dir, specks, &points));
+    THINSLAB_RETURN_IF_ERROR(RunGCoverage(out_dir, 4, &points));
+    THINSLAB_RETURN_IF_ERROR(WriteCoverage(out_dir, points));
+  }
   if (want("g_noise")) {
     std::vector<GPoint> points;
     THINSLAB_RETURN_IF_ERROR(RunGAxis(
@@ -349,14 +503,15 @@ Status Run(const std::string& out_dir, const std::set<std::string>& axes) {
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: stability_tau_phase OUT_DIR [tau_level|exposure|pose|g_value|g_tau|g_noise ...]\n");
+    std::fprintf(stderr, "usage: stability_tau_phase OUT_DIR [tau_level|exposure|pose|g_value|g_tau|g_noise|coverage ...]\n");
     return 2;
   }
   const std::string out_dir = argv[1];
   std::set<std::string> axes;
   for (int k = 2; k < argc; ++k) axes.insert(argv[k]);
   for (const std::string& a : axes) {
-    if (a != "tau_level" && a != "exposure" && a != "pose" && a != "g_value" && a != "g_tau" && a != "g_noise") {
+    if (a != "tau_level" && a != "exposure" && a != "pose" && a != "g_value" && a != "g_tau" && a != "g_noise" &&
+        a != "coverage") {
       std::fprintf(stderr, "stability_tau_phase: unknown axis '%s'\n", a.c_str());
       return 2;
     }
