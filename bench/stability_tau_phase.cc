@@ -301,7 +301,8 @@ Status RunTauCoverage(const std::string& out_dir, const Image& specks, std::vect
     p.within_1 = Fraction(r.within_1_sigma, r.ok);
     p.within_2 = Fraction(r.within_2_sigma, r.ok);
     p.ok = r.pipeline.ok() ? Fraction(r.ok, r.pixels - r.outside) : 0;
-    std::fprintf(stderr, "coverage tau, %s: %.3f / %.3f, ok %.3f (%s)\n", p.name.c_str(), p.within_1, p.within_2, p.ok,
+    std::fprintf(stderr, "coverage tau, %s: %.3f / %.3f, ok %.3f; RMS error %.4f, bias %+.4f, RMS sigma_tau %.4f (%s)\n",
+                 p.name.c_str(), p.within_1, p.within_2, p.ok, r.rms_abs_error, r.mean_error, r.rms_sigma_tau,
                  r.pipeline.ok() ? "fitted" : r.pipeline.message().c_str());
     points->push_back(p);
   }
