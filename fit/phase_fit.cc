@@ -74,8 +74,9 @@ std::string PhaseFitSummary::FullReport() const {
   out << BriefReport() << "\nmessage: " << message << "\n"
       << "g: " << g << " +- " << sigma_g << " (covariance " << sigma_g_covariance << ", jackknife " << sigma_g_jackknife
       << " [" << jackknife_method << "], angle-range consistency "
-      << (range_term_available ? std::to_string(sigma_g_range) : std::string("n/a (< 5 rings within half the range)")) << ", second-order extension " << sigma_g_multiple
-      << " with relative amplitude " << second_order_fraction << ", choice of the outermost angle " << sigma_g_choice
+      << (range_term_available ? std::to_string(sigma_g_range) : std::string("n/a (< 5 rings within half the range)"))
+      << ", second-order extension " << sigma_g_multiple << " with relative amplitude " << second_order_fraction
+      << ", choice of the outermost angle " << sigma_g_choice
       << ")\n"
       << "beta: " << beta << " (sigma of log beta " << sigma_log_beta << ")\n"
       << "tau: " << tau << " +- " << sigma_tau << "\n"
@@ -282,13 +283,16 @@ std::vector<std::string> ChiSquareWarnings(double chi2_reduced, double dof, int 
   return warnings;
 }
 
-// Model-extension term: |g(Eq. 8) - g(Eq. 8 + a second-order lobe at g^2)|, both fitted to all
-// rings from the Eq. 8 solution (tau held at its fitted value). Multiple scattering, which Eq. 8
-// leaves out, is mostly absorbed by a lower g that fits every angle range about equally well, so
-// neither the jackknife nor the range term sees it (g 0.2, tau 0.3, albedo 0.3: error -0.012,
-// those terms 0.003); the extended fit gives the lobe somewhere else to put that light. On a
-// single-scattering lobe c stays near 0 and the term near the noise. Returns 0 when the extended
-// fit fails; *c gets its relative amplitude.
+// Model-extension term: Eq. 8 extended by a second-order lobe of the same form at g^2 with
+// relative amplitude c (fit/cost_functions/laser_lobe_cost.h), g refitted at each c of a grid
+// over [0, 1] from the Eq. 8 solution (tau held at its fitted value); the term is the largest
+// |g(c) - g| among the c whose cost is within delta chi2 = 1 (scaled by chi2/dof, like the
+// covariance) of the best: the profile interval of g with c a nuisance parameter. Multiple
+// scattering, which Eq. 8 leaves out, is mostly absorbed by a lower g that fits every angle
+// range about equally well, so neither the jackknife nor the range term sees it (g 0.2, tau 0.3,
+// albedo 0.3: error -0.012, those terms 0.003, this one 0.037). On a single-scattering lobe the
+// data pin c near 0 and the term stays near the noise. 0 when no extended fit succeeds; *c_out
+// gets the best c.
 double TwoOrderSigmaG(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double log_beta_1,
                       double g_1, double tau, double chi2_scale, double* c_out) {
   // Profile of the cost over the amplitude c in [0, 1] (a local solver started at c = 0 stays

@@ -67,8 +67,9 @@ struct PhaseFitSummary {
   double g = 0;
   // sigma_g = hypot(max(statistical sigma from the covariance scaled by sqrt(chi2/dof),
   // block-jackknife sigma over 8 theta blocks of rings), angle-range consistency |g(all rings) -
-  // g(theta <= max_theta / 2)|). The last two catch lobe-shape mismatch (multiple scattering,
-  // which Eq. 8 leaves out) that the covariance, which assumes the model is right, cannot.
+  // g(theta <= max_theta / 2)|, sigma_g_multiple). The last three catch lobe-shape mismatch
+  // (multiple scattering, which Eq. 8 leaves out) that the covariance, which assumes the model is
+  // right, cannot.
   double sigma_g = 0, sigma_g_covariance = 0, sigma_g_jackknife = 0, sigma_g_range = 0;
   // How the jackknife was formed ("8 contiguous theta blocks", "delete-one over N rings", or
   // "not computed: ..."); whether the range term could be formed (>= 5 rings within half the
@@ -78,9 +79,9 @@ struct PhaseFitSummary {
   // With max_theta_auto, sigma_g also holds (in quadrature) |g - g at the neighbouring candidate
   // angle|: what the choice of the outermost angle moves g by (0 without it).
   double sigma_g_choice = 0;
-  // |g - g of Eq. 8 extended by a second-order lobe HG-like at g^2| (in quadrature in sigma_g):
-  // the multiple scattering Eq. 8 leaves out (fit/phase_fit.cc, TwoOrderSigmaG), and the
-  // extension's relative amplitude c.
+  // Profile interval of g when Eq. 8 is extended by a second-order lobe at g^2 of free relative
+  // amplitude c (in quadrature in sigma_g): the multiple scattering Eq. 8 leaves out
+  // (fit/phase_fit.cc, TwoOrderSigmaG), and the best-fitting c.
   double sigma_g_multiple = 0, second_order_fraction = 0;
   double beta = 0, sigma_log_beta = 0;
   double tau = 0, sigma_tau = 0;
