@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/capture_with_retries.h"
+#include "thinslab/acquire/capture_with_retries.h"
 
 namespace thinslab {
 

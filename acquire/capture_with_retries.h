@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 
-#include "acquire/session_writer.h"
-#include "drivers/camera.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/drivers/camera.h"
 
 namespace thinslab {
 

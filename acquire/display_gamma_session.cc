@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/display_gamma_session.h"
+#include "thinslab/acquire/display_gamma_session.h"
 
 #include <random>
 
-#include "drivers/pattern_id.h"
+#include "thinslab/drivers/pattern_id.h"
 
 namespace thinslab {
 

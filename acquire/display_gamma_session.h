@@ -19,12 +19,12 @@
 #include <string>
 #include <vector>
 
-#include "acquire/display_sync.h"
-#include "acquire/exposure_bracket.h"
-#include "acquire/sample_changer.h"
-#include "acquire/session_writer.h"
-#include "drivers/camera.h"
-#include "drivers/display.h"
+#include "thinslab/acquire/display_sync.h"
+#include "thinslab/acquire/exposure_bracket.h"
+#include "thinslab/acquire/sample_changer.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/drivers/camera.h"
+#include "thinslab/drivers/display.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/display_sync.h"
+#include "thinslab/acquire/display_sync.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,9 +7,9 @@
 #include <sstream>
 #include <vector>
 
-#include "acquire/capture_with_retries.h"
-#include "core/file.h"
-#include "core/session_io.h"
+#include "thinslab/acquire/capture_with_retries.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 

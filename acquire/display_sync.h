@@ -17,14 +17,14 @@
 
 #include <Eigen/Core>
 
-#include "acquire/exposure_bracket.h"
-#include "acquire/sample_changer.h"
-#include "acquire/session_writer.h"
-#include "core/image.h"
-#include "core/status.h"
-#include "drivers/camera.h"
-#include "drivers/display.h"
-#include "drivers/laser.h"
+#include "thinslab/acquire/exposure_bracket.h"
+#include "thinslab/acquire/sample_changer.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
+#include "thinslab/drivers/camera.h"
+#include "thinslab/drivers/display.h"
+#include "thinslab/drivers/laser.h"
 
 namespace thinslab {
 

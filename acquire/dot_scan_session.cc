@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/dot_scan_session.h"
+#include "thinslab/acquire/dot_scan_session.h"
 
 #include <algorithm>
 #include <sstream>
 
-#include "drivers/pattern_id.h"
+#include "thinslab/drivers/pattern_id.h"
 
 namespace thinslab {
 namespace {

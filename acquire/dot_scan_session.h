@@ -16,12 +16,12 @@
 
 #include <Eigen/Core>
 
-#include "acquire/display_sync.h"
-#include "acquire/exposure_bracket.h"
-#include "acquire/session_writer.h"
-#include "acquire/shadow_map_session.h"
-#include "drivers/camera.h"
-#include "drivers/display.h"
+#include "thinslab/acquire/display_sync.h"
+#include "thinslab/acquire/exposure_bracket.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/acquire/shadow_map_session.h"
+#include "thinslab/drivers/camera.h"
+#include "thinslab/drivers/display.h"
 
 namespace thinslab {
 

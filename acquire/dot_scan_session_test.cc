@@ -2,16 +2,16 @@
 // Dot scans, exposure brackets and display-camera synchronisation against in-test fakes: a
 // monitor whose changes reach the camera only after a few frames (queued buffers), as a
 // streaming camera behind a display does.
-#include "acquire/dot_scan_session.h"
+#include "thinslab/acquire/dot_scan_session.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <deque>
 
-#include "acquire/session_journal.h"
-#include "core/session_io.h"
-#include "drivers/pattern_id.h"
+#include "thinslab/acquire/session_journal.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/drivers/pattern_id.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/exposure_bracket.h"
+#include "thinslab/acquire/exposure_bracket.h"
 
 #include <algorithm>
 #include <cmath>

@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "core/status.h"
-#include "drivers/camera.h"
+#include "thinslab/core/status.h"
+#include "thinslab/drivers/camera.h"
 
 namespace thinslab {
 

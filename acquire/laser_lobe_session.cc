@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/laser_lobe_session.h"
+#include "thinslab/acquire/laser_lobe_session.h"
 
 #include <sstream>
 

@@ -14,12 +14,12 @@
 #include <string>
 #include <vector>
 
-#include "acquire/display_sync.h"
-#include "acquire/sample_changer.h"
-#include "acquire/session_writer.h"
-#include "drivers/camera.h"
-#include "drivers/display.h"
-#include "drivers/laser.h"
+#include "thinslab/acquire/display_sync.h"
+#include "thinslab/acquire/sample_changer.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/drivers/camera.h"
+#include "thinslab/drivers/display.h"
+#include "thinslab/drivers/laser.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/progress.h"
+#include "thinslab/acquire/progress.h"
 
 #include <algorithm>
 #include <cmath>

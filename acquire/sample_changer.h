@@ -4,7 +4,7 @@
 #include <functional>
 #include <string>
 
-#include "core/status.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/session_journal.h"
+#include "thinslab/acquire/session_journal.h"
 
 #include <algorithm>
 #include <exception>
@@ -8,10 +8,10 @@
 #include <regex>
 #include <sstream>
 
-#include "acquire/progress.h"
-#include "acquire/session_lock.h"
-#include "core/file.h"
-#include "core/session_io.h"
+#include "thinslab/acquire/progress.h"
+#include "thinslab/acquire/session_lock.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 namespace {

@@ -20,12 +20,12 @@
 #include <ostream>
 #include <string>
 
-#include "acquire/session_writer.h"
-#include "core/session.h"
-#include "core/status.h"
-#include "drivers/camera.h"
-#include "drivers/display.h"
-#include "drivers/laser.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
+#include "thinslab/drivers/camera.h"
+#include "thinslab/drivers/display.h"
+#include "thinslab/drivers/laser.h"
 
 namespace thinslab {
 

@@ -2,7 +2,7 @@
 // Acquisition runs: a device failing mid-session leaves a manifest that says what happened,
 // resume completes the plan without losing or duplicating a frame, and a resume with another
 // plan is refused.
-#include "acquire/session_journal.h"
+#include "thinslab/acquire/session_journal.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -11,11 +11,11 @@
 #include <set>
 #include <sstream>
 
-#include "acquire/progress.h"
-#include "acquire/capture_with_retries.h"
-#include "acquire/session_lock.h"
-#include "core/file.h"
-#include "core/session_io.h"
+#include "thinslab/acquire/progress.h"
+#include "thinslab/acquire/capture_with_retries.h"
+#include "thinslab/acquire/session_lock.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
 #include "tests/testing/temp_dir.h"
 #include "tests/testing/tiny_session.h"
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/session_lock.h"
+#include "thinslab/acquire/session_lock.h"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -8,7 +8,7 @@
 #include <cerrno>
 #include <cstring>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/session_writer.h"
+#include "thinslab/acquire/session_writer.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -15,10 +15,10 @@
 #include <regex>
 #include <set>
 
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "core/session_recovery.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/session_recovery.h"
 
 namespace thinslab {
 

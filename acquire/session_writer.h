@@ -18,10 +18,10 @@
 #include <string>
 #include <vector>
 
-#include "core/image.h"
-#include "core/session.h"
-#include "core/session_recovery.h"
-#include "core/status.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/session_recovery.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -2,7 +2,7 @@
 // SessionWriter's durability rule: frame file, then journal line; session.json at bounded
 // intervals; the frames after the last manifest write are rebuilt from the journal, a journal
 // line cut short by a kill is dropped, and a frame file written without its record is removed.
-#include "acquire/session_writer.h"
+#include "thinslab/acquire/session_writer.h"
 
 #include <gtest/gtest.h>
 
@@ -11,8 +11,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "core/file.h"
-#include "core/session_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
 #include "tests/testing/temp_dir.h"
 #include "tests/testing/tiny_session.h"
 

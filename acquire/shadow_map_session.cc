@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "acquire/shadow_map_session.h"
+#include "thinslab/acquire/shadow_map_session.h"
 
 #include <sstream>
 

@@ -2,15 +2,15 @@
 // Shadow-map and laser-lobe sessions through a fake board rig whose camera shows a light change
 // only some captures after it (queued buffers): retries, display-camera synchronisation, and
 // exposures in whole refresh periods of the display.
-#include "acquire/shadow_map_session.h"
+#include "thinslab/acquire/shadow_map_session.h"
 
 #include <gtest/gtest.h>
 
 #include <functional>
 #include <set>
 
-#include "acquire/laser_lobe_session.h"
-#include "core/session_io.h"
+#include "thinslab/acquire/laser_lobe_session.h"
+#include "thinslab/core/session_io.h"
 #include "tests/testing/temp_dir.h"
 #include "tests/testing/tiny_session.h"
 

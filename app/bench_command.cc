@@ -9,17 +9,17 @@
 #include <iostream>
 #include <sstream>
 
-#include "app/commands.h"
-#include "app/knob_sweep.h"
-#include "app/option_parser.h"
-#include "core/parallel.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "calib/laser_lobe_preparation.h"
-#include "fit/dmf_processing.h"
-#include "sim/laser_lobe_rig.h"
-#include "sim/synthesize_dot_scan_session.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/knob_sweep.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/core/parallel.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/calib/laser_lobe_preparation.h"
+#include "thinslab/fit/dmf_processing.h"
+#include "thinslab/sim/laser_lobe_rig.h"
+#include "thinslab/sim/synthesize_dot_scan_session.h"
 
 namespace thinslab {
 namespace {

@@ -4,7 +4,7 @@
 #include <iostream>
 #include <string>
 
-#include "app/commands.h"
+#include "thinslab/app/commands.h"
 
 namespace thinslab {
 

@@ -9,14 +9,14 @@
 #include <string>
 #include <vector>
 
-#include "app/capture_options.h"
-#include "app/commands.h"
-#include "app/option_parser.h"
-#include "calib/display_gamma_fit.h"
-#include "calib/session_calibration.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "core/version.h"
+#include "thinslab/app/capture_options.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/calib/display_gamma_fit.h"
+#include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/version.h"
 
 namespace thinslab {
 namespace {

@@ -12,19 +12,19 @@
 #include <iostream>
 #include <sstream>
 
-#include "app/capture_options.h"
-#include "app/commands.h"
-#include "app/calibration_options.h"
-#include "app/option_parser.h"
-#include "calib/camera_calibration.h"
-#include "calib/dot_geometry.h"
-#include "calib/plane_pose.h"
-#include "calib/rig_io.h"
-#include "calib/session_calibration.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "core/session_io.h"
-#include "drivers/pattern_id.h"
+#include "thinslab/app/capture_options.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/calibration_options.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/calib/camera_calibration.h"
+#include "thinslab/calib/dot_geometry.h"
+#include "thinslab/calib/plane_pose.h"
+#include "thinslab/calib/rig_io.h"
+#include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/drivers/pattern_id.h"
 
 namespace thinslab {
 

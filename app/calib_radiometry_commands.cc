@@ -15,19 +15,19 @@
 #include <set>
 #include <sstream>
 
-#include "app/calibration_options.h"
-#include "app/capture_options.h"
-#include "app/commands.h"
-#include "app/option_parser.h"
-#include "calib/flat_field.h"
-#include "calib/hdr_merge.h"
-#include "calib/response_io.h"
-#include "calib/response_recovery.h"
-#include "calib/session_calibration.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "core/version.h"
+#include "thinslab/app/calibration_options.h"
+#include "thinslab/app/capture_options.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/calib/flat_field.h"
+#include "thinslab/calib/hdr_merge.h"
+#include "thinslab/calib/response_io.h"
+#include "thinslab/calib/response_recovery.h"
+#include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/version.h"
 
 namespace thinslab {
 namespace {

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "app/calibration_options.h"
+#include "thinslab/app/calibration_options.h"
 
 #include <cstdio>
 
-#include "app/option_parser.h"
+#include "thinslab/app/option_parser.h"
 
 namespace thinslab {
 

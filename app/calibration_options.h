@@ -5,9 +5,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/dot_geometry.h"
-#include "calib/exposure_check.h"
-#include "calib/session_calibration.h"
+#include "thinslab/calib/dot_geometry.h"
+#include "thinslab/calib/exposure_check.h"
+#include "thinslab/calib/session_calibration.h"
 
 namespace thinslab {
 

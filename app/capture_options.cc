@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "app/capture_options.h"
+#include "thinslab/app/capture_options.h"
 
 #include <filesystem>
 #include <iostream>
 
-#include "app/option_parser.h"
-#include "core/file.h"
-#include "core/output_guard.h"
-#include "core/session_io.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/output_guard.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 

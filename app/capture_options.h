@@ -6,8 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/session_calibration.h"
-#include "core/session_recovery.h"
+#include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/session_recovery.h"
 
 namespace thinslab {
 

@@ -8,15 +8,15 @@
 #include <iostream>
 #include <sstream>
 
-#include "app/commands.h"
-#include "app/option_parser.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "core/plot.h"
-#include "optics/dual_microfacet_btdf.h"
-#include "optics/thin_slab.h"
-#include "sim/layer_path_tracer.h"
-#include "sim/rough_slab_photon_tracer.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/plot.h"
+#include "thinslab/optics/dual_microfacet_btdf.h"
+#include "thinslab/optics/thin_slab.h"
+#include "thinslab/sim/layer_path_tracer.h"
+#include "thinslab/sim/rough_slab_photon_tracer.h"
 
 namespace thinslab {
 namespace {

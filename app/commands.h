@@ -6,15 +6,15 @@
 #include <iostream>
 #include <string>
 
-#include "calib/laser_lobe_preparation.h"
-#include "calib/session_calibration.h"
-#include "core/status.h"
-#include "fit/laser_lobe_ladder.h"
-#include "fit/phase_fit.h"
-#include "fit/tau_evaluation.h"
-#include "fit/tau_fit.h"
-#include "sim/sensor_model.h"
-#include "sim/synthesize_shadow_session.h"
+#include "thinslab/calib/laser_lobe_preparation.h"
+#include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/status.h"
+#include "thinslab/fit/laser_lobe_ladder.h"
+#include "thinslab/fit/phase_fit.h"
+#include "thinslab/fit/tau_evaluation.h"
+#include "thinslab/fit/tau_fit.h"
+#include "thinslab/sim/sensor_model.h"
+#include "thinslab/sim/synthesize_shadow_session.h"
 
 namespace thinslab {
 

@@ -3,10 +3,10 @@
 #include <filesystem>
 #include <iostream>
 
-#include "app/commands.h"
-#include "app/option_parser.h"
-#include "core/output_guard.h"
-#include "core/file.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/core/output_guard.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 

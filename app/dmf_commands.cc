@@ -17,21 +17,21 @@
 #include <map>
 #include <sstream>
 
-#include "app/calibration_options.h"
-#include "app/capture_options.h"
-#include "app/commands.h"
-#include "app/option_parser.h"
-#include "core/exr_io.h"
-#include "core/false_color.h"
-#include "core/file.h"
-#include "core/memory.h"
-#include "core/parallel.h"
-#include "core/session_io.h"
-#include "core/version.h"
-#include "fit/dmf_evaluation.h"
-#include "fit/dmf_map_fit.h"
-#include "fit/dmf_model_ladder.h"
-#include "fit/dmf_processing.h"
+#include "thinslab/app/calibration_options.h"
+#include "thinslab/app/capture_options.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/false_color.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/memory.h"
+#include "thinslab/core/parallel.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/version.h"
+#include "thinslab/fit/dmf_evaluation.h"
+#include "thinslab/fit/dmf_map_fit.h"
+#include "thinslab/fit/dmf_model_ladder.h"
+#include "thinslab/fit/dmf_processing.h"
 
 namespace thinslab {
 namespace {

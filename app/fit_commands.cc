@@ -6,18 +6,18 @@
 #include <iostream>
 #include <sstream>
 
-#include "app/calibration_options.h"
-#include "app/capture_options.h"
-#include "app/commands.h"
-#include "app/layer_from_phase.h"
-#include "app/option_parser.h"
-#include "app/prediction_report.h"
-#include "calib/shadow_map_preparation.h"
-#include "core/exr_io.h"
-#include "core/false_color.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "core/version.h"
+#include "thinslab/app/calibration_options.h"
+#include "thinslab/app/capture_options.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/layer_from_phase.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/app/prediction_report.h"
+#include "thinslab/calib/shadow_map_preparation.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/false_color.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/version.h"
 
 namespace thinslab {
 namespace {

@@ -6,11 +6,11 @@
 #include <set>
 #include <tuple>
 
-#include "acquire/session_lock.h"
-#include "app/commands.h"
-#include "app/option_parser.h"
-#include "core/session_io.h"
-#include "core/session_recovery.h"
+#include "thinslab/acquire/session_lock.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/session_recovery.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "app/knob_sweep.h"
+#include "thinslab/app/knob_sweep.h"
 
 #include <algorithm>
 #include <chrono>
@@ -8,11 +8,11 @@
 #include <map>
 #include <sstream>
 
-#include "core/parallel.h"
-#include "core/plot.h"
-#include "fit/dmf_model_ladder.h"
-#include "fit/single_interface_fit.h"
-#include "fit/tau_evaluation.h"
+#include "thinslab/core/parallel.h"
+#include "thinslab/core/plot.h"
+#include "thinslab/fit/dmf_model_ladder.h"
+#include "thinslab/fit/single_interface_fit.h"
+#include "thinslab/fit/tau_evaluation.h"
 
 namespace thinslab {
 namespace {

@@ -10,14 +10,14 @@
 #include <string>
 #include <vector>
 
-#include "calib/laser_lobe_preparation.h"
-#include "calib/shadow_map_preparation.h"
-#include "core/image.h"
-#include "core/status.h"
-#include "fit/dmf_evaluation.h"
-#include "fit/dmf_map_fit.h"
-#include "fit/phase_fit.h"
-#include "fit/tau_fit.h"
+#include "thinslab/calib/laser_lobe_preparation.h"
+#include "thinslab/calib/shadow_map_preparation.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
+#include "thinslab/fit/dmf_evaluation.h"
+#include "thinslab/fit/dmf_map_fit.h"
+#include "thinslab/fit/phase_fit.h"
+#include "thinslab/fit/tau_fit.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "app/knob_sweep.h"
+#include "thinslab/app/knob_sweep.h"
 
 #include <gtest/gtest.h>
 

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "app/layer_from_phase.h"
+#include "thinslab/app/layer_from_phase.h"
 
 #include <nlohmann/json.hpp>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 

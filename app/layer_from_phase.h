@@ -11,8 +11,8 @@
 
 #include <string>
 
-#include "core/status.h"
-#include "fit/tau_fit.h"
+#include "thinslab/core/status.h"
+#include "thinslab/fit/tau_fit.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "app/option_parser.h"
+#include "thinslab/app/option_parser.h"
 
 #include <algorithm>
 #include <cerrno>

@@ -10,19 +10,19 @@
 #include <iostream>
 #include <sstream>
 
-#include "app/calibration_options.h"
-#include "app/capture_options.h"
-#include "app/commands.h"
-#include "fit/laser_lobe_ladder.h"
-#include "app/option_parser.h"
-#include "app/prediction_report.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "core/plot.h"
-#include "core/session_io.h"
-#include "core/version.h"
-#include "sim/laser_lobe_rig.h"
+#include "thinslab/app/calibration_options.h"
+#include "thinslab/app/capture_options.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/fit/laser_lobe_ladder.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/app/prediction_report.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/plot.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/version.h"
+#include "thinslab/sim/laser_lobe_rig.h"
 
 namespace thinslab {
 namespace {

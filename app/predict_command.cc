@@ -12,18 +12,18 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "app/calibration_options.h"
-#include "app/capture_options.h"
-#include "app/commands.h"
-#include "app/option_parser.h"
-#include "app/prediction_report.h"
-#include "calib/frame_noise.h"
-#include "calib/hdr_merge.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "core/version.h"
-#include "fit/dmf_prediction.h"
+#include "thinslab/app/calibration_options.h"
+#include "thinslab/app/capture_options.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/app/prediction_report.h"
+#include "thinslab/calib/frame_noise.h"
+#include "thinslab/calib/hdr_merge.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/version.h"
+#include "thinslab/fit/dmf_prediction.h"
 
 namespace thinslab {
 

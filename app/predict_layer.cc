@@ -10,16 +10,16 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "app/layer_from_phase.h"
-#include "app/prediction_report.h"
-#include "calib/board_rectification.h"
-#include "calib/laser_lobe_preparation.h"
-#include "calib/shadow_map_preparation.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "core/version.h"
-#include "optics/dirty_glass.h"
+#include "thinslab/app/layer_from_phase.h"
+#include "thinslab/app/prediction_report.h"
+#include "thinslab/calib/board_rectification.h"
+#include "thinslab/calib/laser_lobe_preparation.h"
+#include "thinslab/calib/shadow_map_preparation.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/version.h"
+#include "thinslab/optics/dirty_glass.h"
 
 namespace thinslab {
 namespace {

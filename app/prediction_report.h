@@ -8,13 +8,13 @@
 #include <string>
 #include <vector>
 
-#include "calib/session_calibration.h"
-#include "calib/shadow_map_preparation.h"
-#include "core/file.h"
-#include "core/session.h"
-#include "fit/phase_fit.h"
-#include "fit/tau_fit.h"
-#include "fit/tau_prediction.h"
+#include "thinslab/calib/session_calibration.h"
+#include "thinslab/calib/shadow_map_preparation.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session.h"
+#include "thinslab/fit/phase_fit.h"
+#include "thinslab/fit/tau_fit.h"
+#include "thinslab/fit/tau_prediction.h"
 
 namespace thinslab {
 

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
 #include <iostream>
 
-#include "app/commands.h"
-#include "app/option_parser.h"
-#include "core/file.h"
-#include "core/output_guard.h"
-#include "core/exr_io.h"
-#include "sim/contamination_pattern.h"
-#include "sim/synthesize_dot_scan_session.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/output_guard.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/sim/contamination_pattern.h"
+#include "thinslab/sim/synthesize_dot_scan_session.h"
 
 #ifndef THINSLAB_DATA_DIR
 #define THINSLAB_DATA_DIR "data"

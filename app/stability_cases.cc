@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "app/stability_cases.h"
+#include "thinslab/app/stability_cases.h"
 
 #include <nlohmann/json.hpp>
 
@@ -8,10 +8,10 @@
 #include <cmath>
 #include <sstream>
 
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "core/session_io.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 

@@ -11,13 +11,13 @@
 #include <cstdint>
 #include <string>
 
-#include "app/commands.h"
-#include "core/image.h"
-#include "core/status.h"
-#include "fit/phase_fit.h"
-#include "fit/tau_fit.h"
-#include "sim/laser_lobe_rig.h"
-#include "sim/synthesize_shadow_session.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
+#include "thinslab/fit/phase_fit.h"
+#include "thinslab/fit/tau_fit.h"
+#include "thinslab/sim/laser_lobe_rig.h"
+#include "thinslab/sim/synthesize_shadow_session.h"
 
 namespace thinslab {
 

@@ -10,16 +10,16 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "app/commands.h"
-#include "app/option_parser.h"
-#include "core/output_guard.h"
-#include "core/exr_io.h"
-#include "core/false_color.h"
-#include "core/file.h"
-#include "core/version.h"
-#include "synth/layer_synthesis.h"
-#include "synth/pane_preview.h"
-#include "synth/prototype_library.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/core/output_guard.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/false_color.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/version.h"
+#include "thinslab/synth/layer_synthesis.h"
+#include "thinslab/synth/pane_preview.h"
+#include "thinslab/synth/prototype_library.h"
 
 namespace thinslab {
 namespace {

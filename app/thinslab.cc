@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "app/commands.h"
-#include "core/version.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/core/version.h"
 
 namespace {
 

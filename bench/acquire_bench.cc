@@ -11,8 +11,8 @@
 #include <filesystem>
 #include <string>
 
-#include "acquire/session_writer.h"
-#include "core/session_io.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/session_io.h"
 #include "tests/testing/tiny_session.h"
 
 namespace thinslab {

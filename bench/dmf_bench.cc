@@ -16,10 +16,10 @@
 #include <string>
 #include <vector>
 
-#include "core/memory.h"
-#include "fit/dmf_map_fit.h"
-#include "fit/dmf_processing.h"
-#include "sim/synthesize_dot_scan_session.h"
+#include "thinslab/core/memory.h"
+#include "thinslab/fit/dmf_map_fit.h"
+#include "thinslab/fit/dmf_processing.h"
+#include "thinslab/sim/synthesize_dot_scan_session.h"
 
 int main(int argc, char** argv) {
   using namespace thinslab;

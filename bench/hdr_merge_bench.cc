@@ -12,7 +12,7 @@
 #include <cstdint>
 #include <memory>
 
-#include "calib/hdr_merge.h"
+#include "thinslab/calib/hdr_merge.h"
 
 namespace thinslab {
 namespace {

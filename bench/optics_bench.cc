@@ -7,13 +7,13 @@
 #include <random>
 #include <vector>
 
-#include "optics/dirty_glass.h"
-#include "optics/dirty_glass_layer.h"
-#include "optics/dual_microfacet_btdf.h"
-#include "optics/henyey_greenstein.h"
-#include "optics/microfacet.h"
-#include "optics/thin_slab.h"
-#include "optics/walter_btdf.h"
+#include "thinslab/optics/dirty_glass.h"
+#include "thinslab/optics/dirty_glass_layer.h"
+#include "thinslab/optics/dual_microfacet_btdf.h"
+#include "thinslab/optics/henyey_greenstein.h"
+#include "thinslab/optics/microfacet.h"
+#include "thinslab/optics/thin_slab.h"
+#include "thinslab/optics/walter_btdf.h"
 
 namespace thinslab {
 namespace {

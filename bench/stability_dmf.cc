@@ -26,13 +26,13 @@
 #include <string>
 #include <vector>
 
-#include "core/file.h"
-#include "core/math.h"
-#include "core/plot.h"
-#include "fit/dmf_evaluation.h"
-#include "fit/dmf_map_fit.h"
-#include "fit/dmf_processing.h"
-#include "sim/synthesize_dot_scan_session.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/plot.h"
+#include "thinslab/fit/dmf_evaluation.h"
+#include "thinslab/fit/dmf_map_fit.h"
+#include "thinslab/fit/dmf_processing.h"
+#include "thinslab/sim/synthesize_dot_scan_session.h"
 
 namespace thinslab {
 namespace {

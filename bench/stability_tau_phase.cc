@@ -18,9 +18,9 @@
 #include <string>
 #include <vector>
 
-#include "app/stability_cases.h"
-#include "core/plot.h"
-#include "sim/contamination_pattern.h"
+#include "thinslab/app/stability_cases.h"
+#include "thinslab/core/plot.h"
+#include "thinslab/sim/contamination_pattern.h"
 
 namespace thinslab {
 namespace {

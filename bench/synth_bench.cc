@@ -8,8 +8,8 @@
 #include <cstdlib>
 #include <string>
 
-#include "synth/layer_synthesis.h"
-#include "synth/prototype_library.h"
+#include "thinslab/synth/layer_synthesis.h"
+#include "thinslab/synth/prototype_library.h"
 
 namespace thinslab {
 namespace {

@@ -7,7 +7,7 @@
 
 #include <cmath>
 
-#include "fit/tau_fit.h"
+#include "thinslab/fit/tau_fit.h"
 
 namespace thinslab {
 namespace {

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/board_rectification.h"
+#include "thinslab/calib/board_rectification.h"
 
 #include <glog/logging.h>
 
 #include <algorithm>
 #include <cmath>
 
-#include "core/camera_model.h"
-#include "core/math.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

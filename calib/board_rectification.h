@@ -13,8 +13,8 @@
 
 #include <vector>
 
-#include "core/image.h"
-#include "core/session.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
 
 namespace thinslab {
 

@@ -2,7 +2,7 @@
 // BoardRectifier: the area-weighted mean of the camera pixels under a map pixel and its
 // variance, checked on a nadir camera whose pixels are larger or much smaller than the map pixels;
 // then metric accuracy and area weighting under an oblique camera with lens distortion.
-#include "calib/board_rectification.h"
+#include "thinslab/calib/board_rectification.h"
 
 #include <gtest/gtest.h>
 
@@ -15,10 +15,10 @@
 #include <utility>
 #include <vector>
 
-#include "calib/camera_calibration.h"
-#include "core/camera_model.h"
-#include "core/math.h"
-#include "sim/sim_chessboard.h"
+#include "thinslab/calib/camera_calibration.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/math.h"
+#include "thinslab/sim/sim_chessboard.h"
 
 namespace thinslab {
 namespace {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/camera_calibration.h"
+#include "thinslab/calib/camera_calibration.h"
 
 #include <algorithm>
 #include <cctype>
@@ -10,9 +10,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "core/opencv_error.h"
-#include "core/exr_io.h"
-#include "core/file.h"
+#include "thinslab/core/opencv_error.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/camera_calibration.h"
+#include "thinslab/calib/camera_calibration.h"
 
 #include <gtest/gtest.h>
 
@@ -10,10 +10,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "core/camera_model.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "sim/sim_chessboard.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/sim/sim_chessboard.h"
 #include "tests/testing/chessboard_views.h"
 
 namespace thinslab {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/display_gamma_fit.h"
+#include "thinslab/calib/display_gamma_fit.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,10 +7,10 @@
 #include <set>
 #include <sstream>
 
-#include "calib/hdr_merge.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "drivers/pattern_id.h"
+#include "thinslab/calib/hdr_merge.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/drivers/pattern_id.h"
 
 namespace thinslab {
 namespace {

@@ -15,10 +15,10 @@
 #include <string>
 #include <vector>
 
-#include "calib/response_io.h"
-#include "core/session.h"
-#include "core/status.h"
-#include "drivers/display_gamma.h"
+#include "thinslab/calib/response_io.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
+#include "thinslab/drivers/display_gamma.h"
 
 namespace thinslab {
 

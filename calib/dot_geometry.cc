@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/dot_geometry.h"
+#include "thinslab/calib/dot_geometry.h"
 
 #include <Eigen/LU>
 #include <Eigen/SVD>
@@ -15,8 +15,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "core/camera_model.h"
-#include "core/math.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

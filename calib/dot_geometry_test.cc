@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/dot_geometry.h"
+#include "thinslab/calib/dot_geometry.h"
 
 #include <gtest/gtest.h>
 
@@ -7,12 +7,12 @@
 #include <cstdio>
 #include <memory>
 
-#include "calib/camera_calibration.h"
-#include "calib/plane_pose.h"
-#include "core/camera_model.h"
-#include "core/math.h"
-#include "sim/sim_chessboard.h"
-#include "sim/sim_dot_monitor.h"
+#include "thinslab/calib/camera_calibration.h"
+#include "thinslab/calib/plane_pose.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/math.h"
+#include "thinslab/sim/sim_chessboard.h"
+#include "thinslab/sim/sim_dot_monitor.h"
 #include "tests/testing/chessboard_views.h"
 
 namespace thinslab {

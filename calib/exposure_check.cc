@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/exposure_check.h"
+#include "thinslab/calib/exposure_check.h"
 
-#include "calib/hdr_merge.h"
+#include "thinslab/calib/hdr_merge.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/flat_field.h"
+#include "thinslab/calib/flat_field.h"
 
 #include <opencv2/imgproc.hpp>
 
@@ -7,9 +7,9 @@
 #include <cmath>
 #include <sstream>
 
-#include "calib/hdr_merge.h"
-#include "core/file.h"
-#include "core/math.h"
+#include "thinslab/calib/hdr_merge.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

@@ -10,11 +10,11 @@
 
 #include <string>
 
-#include "calib/response_io.h"
-#include "calib/frame_noise.h"
-#include "core/image.h"
-#include "core/session.h"
-#include "core/status.h"
+#include "thinslab/calib/response_io.h"
+#include "thinslab/calib/frame_noise.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

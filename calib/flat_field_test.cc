@@ -2,7 +2,7 @@
 // Flat field (calib/flat_field) and the three radiometric commands end to end on a simulated
 // bracket session: nonlinear 12-bit camera, ambient light seen by the dark frames, noise,
 // quantisation and saturation.
-#include "calib/flat_field.h"
+#include "thinslab/calib/flat_field.h"
 
 #include <gtest/gtest.h>
 
@@ -10,12 +10,12 @@
 #include <cstdio>
 #include <random>
 
-#include "app/commands.h"
-#include "calib/response_io.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "sim/exposure_bracket_sim.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/calib/response_io.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/sim/exposure_bracket_sim.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

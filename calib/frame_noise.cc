@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/frame_noise.h"
+#include "thinslab/calib/frame_noise.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,8 +8,8 @@
 #include <sstream>
 #include <tuple>
 
-#include "core/file.h"
-#include "core/session_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 

@@ -2,7 +2,7 @@
 // The noise estimators of calib/frame_noise.h on frames with a known Poisson-Gaussian noise
 // (Poisson electrons plus Gaussian read noise, drawn per pixel: a more complete model than the
 // straight line the estimator fits only in expectation).
-#include "calib/frame_noise.h"
+#include "thinslab/calib/frame_noise.h"
 
 #include <cmath>
 #include <random>

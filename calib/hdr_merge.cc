@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/hdr_merge.h"
+#include "thinslab/calib/hdr_merge.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,8 +9,8 @@
 #include <set>
 #include <thread>
 
-#include "core/parallel.h"
-#include "core/session_io.h"
+#include "thinslab/core/parallel.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 

@@ -29,12 +29,12 @@
 #include <string>
 #include <vector>
 
-#include "calib/exposure_check.h"
-#include "calib/frame_noise.h"
-#include "calib/response_io.h"
-#include "core/image.h"
-#include "core/session.h"
-#include "core/status.h"
+#include "thinslab/calib/exposure_check.h"
+#include "thinslab/calib/frame_noise.h"
+#include "thinslab/calib/response_io.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/hdr_merge.h"
+#include "thinslab/calib/hdr_merge.h"
 
 #include <gtest/gtest.h>
 
@@ -8,8 +8,8 @@
 #include <cmath>
 #include <random>
 
-#include "calib/response_recovery.h"
-#include "sim/exposure_bracket_sim.h"
+#include "thinslab/calib/response_recovery.h"
+#include "thinslab/sim/exposure_bracket_sim.h"
 
 namespace thinslab {
 namespace {

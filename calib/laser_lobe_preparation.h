@@ -6,12 +6,12 @@
 
 #include <string>
 
-#include "calib/exposure_check.h"
-#include "calib/hdr_merge.h"
-#include "calib/session_calibration.h"
-#include "core/image.h"
-#include "core/session.h"
-#include "core/status.h"
+#include "thinslab/calib/exposure_check.h"
+#include "thinslab/calib/hdr_merge.h"
+#include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

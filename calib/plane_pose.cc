@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/plane_pose.h"
+#include "thinslab/calib/plane_pose.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
@@ -8,8 +8,8 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
-#include "core/opencv_error.h"
-#include "core/camera_model.h"
+#include "thinslab/core/opencv_error.h"
+#include "thinslab/core/camera_model.h"
 
 namespace thinslab {
 

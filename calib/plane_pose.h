@@ -11,11 +11,11 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "calib/camera_calibration.h"
-#include "core/image.h"
-#include "core/rigid3.h"
-#include "core/session.h"
-#include "core/status.h"
+#include "thinslab/calib/camera_calibration.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/rigid3.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/plane_pose.h"
+#include "thinslab/calib/plane_pose.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 
-#include "calib/board_rectification.h"
-#include "core/math.h"
-#include "sim/sim_chessboard.h"
+#include "thinslab/calib/board_rectification.h"
+#include "thinslab/core/math.h"
+#include "thinslab/sim/sim_chessboard.h"
 
 namespace thinslab {
 namespace {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/response_io.h"
+#include "thinslab/calib/response_io.h"
 
 #include <nlohmann/json.hpp>
 
@@ -7,7 +7,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 

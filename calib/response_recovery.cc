@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/response_recovery.h"
+#include "thinslab/calib/response_recovery.h"
 
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
@@ -12,7 +12,7 @@
 #include <sstream>
 #include <tuple>
 
-#include "calib/hdr_merge.h"
+#include "thinslab/calib/hdr_merge.h"
 
 namespace thinslab {
 

@@ -24,9 +24,9 @@
 #include <string>
 #include <vector>
 
-#include "calib/response_io.h"
-#include "core/image.h"
-#include "core/status.h"
+#include "thinslab/calib/response_io.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

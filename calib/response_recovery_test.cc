@@ -3,7 +3,7 @@
 // curve, photon and read noise, quantisation and saturation. The forward model (noise before the
 // curve, Poisson at low counts, rounding, clipping) is more complete than the noise-free
 // g(z) = ln E + ln t that Debevec & Malik fit.
-#include "calib/response_recovery.h"
+#include "thinslab/calib/response_recovery.h"
 
 #include <gtest/gtest.h>
 
@@ -12,8 +12,8 @@
 
 #include "tests/testing/temp_dir.h"
 
-#include "calib/hdr_merge.h"
-#include "sim/exposure_bracket_sim.h"
+#include "thinslab/calib/hdr_merge.h"
+#include "thinslab/sim/exposure_bracket_sim.h"
 
 namespace thinslab {
 namespace {

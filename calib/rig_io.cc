@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/rig_io.h"
+#include "thinslab/calib/rig_io.h"
 
 #include <cmath>
 #include <nlohmann/json.hpp>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 

@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "calib/dot_geometry.h"
-#include "core/rigid3.h"
-#include "core/session.h"
-#include "core/status.h"
+#include "thinslab/calib/dot_geometry.h"
+#include "thinslab/core/rigid3.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/rig_io.h"
+#include "thinslab/calib/rig_io.h"
 
 #include <gtest/gtest.h>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

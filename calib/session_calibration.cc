@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/session_calibration.h"
+#include "thinslab/calib/session_calibration.h"
 
 #include <cmath>
 
-#include "core/exr_io.h"
-#include "core/file.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 

@@ -9,11 +9,11 @@
 
 #include <string>
 
-#include "calib/response_io.h"
-#include "calib/rig_io.h"
-#include "core/image.h"
-#include "core/session.h"
-#include "core/status.h"
+#include "thinslab/calib/response_io.h"
+#include "thinslab/calib/rig_io.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

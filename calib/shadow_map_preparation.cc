@@ -1,15 +1,15 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "calib/shadow_map_preparation.h"
+#include "thinslab/calib/shadow_map_preparation.h"
 
 #include <cmath>
 #include <sstream>
 #include <vector>
 
-#include "core/grid_size.h"
-#include "calib/board_rectification.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "core/session_io.h"
+#include "thinslab/core/grid_size.h"
+#include "thinslab/calib/board_rectification.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 

@@ -8,11 +8,11 @@
 #include <string>
 #include <vector>
 
-#include "calib/frame_noise.h"
-#include "calib/session_calibration.h"
-#include "core/image.h"
-#include "core/session.h"
-#include "core/status.h"
+#include "thinslab/calib/frame_noise.h"
+#include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

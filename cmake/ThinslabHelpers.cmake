@@ -17,10 +17,18 @@ if(THINSLAB_SANITIZE)
   add_link_options(-fsanitize=address,undefined)
 endif()
 
+# "thinslab/<stage>/<name>.h" resolves in the build tree and, after `cmake --install`, under
+# <prefix>/include.
+function(thinslab_target_includes target scope)
+  target_include_directories(${target} ${scope} "$<BUILD_INTERFACE:${THINSLAB_BUILD_INCLUDE_DIRS}>"
+                             $<INSTALL_INTERFACE:include>)
+endfunction()
+
 function(thinslab_add_library)
   cmake_parse_arguments(ARG "" "NAME" "SRCS;LINK_LIBS" ${ARGN})
   add_library(${ARG_NAME} ${ARG_SRCS})
   target_compile_options(${ARG_NAME} PRIVATE ${THINSLAB_WARNING_FLAGS})
+  thinslab_target_includes(${ARG_NAME} PUBLIC)
   target_link_libraries(${ARG_NAME} PUBLIC ${ARG_LINK_LIBS})
 endfunction()
 
@@ -32,6 +40,8 @@ function(thinslab_add_test)
   string(REPLACE "/" "_" exe ${ARG_NAME})
   add_executable(${exe} ${ARG_SRCS})
   target_compile_options(${exe} PRIVATE ${THINSLAB_WARNING_FLAGS})
+  # Tests also include their helpers as "tests/...".
+  target_include_directories(${exe} PRIVATE ${PROJECT_SOURCE_DIR})
   target_link_libraries(${exe} PRIVATE ${ARG_LINK_LIBS} GTest::gtest GTest::gtest_main GTest::gmock)
   thinslab_add_test_entry(NAME ${ARG_NAME} EXE ${exe} TIMEOUT "${ARG_TIMEOUT}" GTEST_FILTER "${ARG_GTEST_FILTER}"
                           LABELS ${ARG_LABELS})
@@ -59,5 +69,6 @@ function(thinslab_add_bench)
   cmake_parse_arguments(ARG "" "NAME" "SRCS;LINK_LIBS" ${ARGN})
   add_executable(${ARG_NAME} ${ARG_SRCS})
   target_compile_options(${ARG_NAME} PRIVATE ${THINSLAB_WARNING_FLAGS})
+  target_include_directories(${ARG_NAME} PRIVATE ${PROJECT_SOURCE_DIR})
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_LINK_LIBS} benchmark::benchmark)
 endfunction()

@@ -8,7 +8,7 @@
 #include <Eigen/LU>
 #include <vector>
 
-#include "core/session.h"
+#include "thinslab/core/session.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/exr_io.h"
+#include "thinslab/core/exr_io.h"
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
@@ -16,9 +16,9 @@
 #include <string>
 #include <vector>
 
-#include "core/file.h"
-#include "core/memory.h"
-#include "core/version.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/memory.h"
+#include "thinslab/core/version.h"
 
 namespace thinslab {
 namespace {

@@ -5,8 +5,8 @@
 
 #include <string>
 
-#include "core/image.h"
-#include "core/status.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

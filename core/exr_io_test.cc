@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/exr_io.h"
+#include "thinslab/core/exr_io.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -10,7 +10,7 @@
 #include <limits>
 #include <string>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

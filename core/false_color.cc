@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/false_color.h"
+#include "thinslab/core/false_color.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -7,8 +7,8 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
-#include "core/file.h"
-#include "core/png_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/png_io.h"
 
 namespace thinslab {
 

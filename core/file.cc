@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/file.h"
+#include "thinslab/core/file.h"
 
 #include <fcntl.h>
 #include <signal.h>

@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "core/output_guard.h"
-#include "core/status.h"
+#include "thinslab/core/output_guard.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

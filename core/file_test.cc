@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/file.h"
+#include "thinslab/core/file.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "core/exr_io.h"
-#include "core/image.h"
-#include "core/output_guard.h"
-#include "core/png_io.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/output_guard.h"
+#include "thinslab/core/png_io.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

@@ -8,7 +8,7 @@
 #include <sstream>
 #include <string>
 
-#include "core/status.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/image.h"
+#include "thinslab/core/image.h"
 
 #include <algorithm>
 #include <cmath>

@@ -9,7 +9,7 @@
 #include <fstream>
 #include <string>
 
-#include "core/status.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/output_guard.h"
+#include "thinslab/core/output_guard.h"
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "core/session.h"
-#include "core/version.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/version.h"
 
 namespace thinslab {
 namespace fs = std::filesystem;

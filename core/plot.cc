@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/plot.h"
+#include "thinslab/core/plot.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,8 +7,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "core/file.h"
-#include "core/png_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/png_io.h"
 
 namespace thinslab {
 namespace {

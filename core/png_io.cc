@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/png_io.h"
+#include "thinslab/core/png_io.h"
 
 #include <array>
 #include <cstdint>
 #include <opencv2/imgcodecs.hpp>
 #include <vector>
 
-#include "core/opencv_error.h"
-#include "core/file.h"
-#include "core/version.h"
+#include "thinslab/core/opencv_error.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/version.h"
 
 namespace thinslab {
 namespace {

@@ -6,7 +6,7 @@
 #include <opencv2/core.hpp>
 #include <string>
 
-#include "core/status.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/session.h"
+#include "thinslab/core/session.h"
 
 namespace thinslab {
 

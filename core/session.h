@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "core/rigid3.h"
+#include "thinslab/core/rigid3.h"
 
 namespace thinslab {
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Reading, writing and validating capture sessions. docs/format.md is the normative
 // description of session.json and of the frame files; keep the two in step.
-#include "core/session_io.h"
+#include "thinslab/core/session_io.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -25,10 +25,10 @@
 #include <utility>
 #include <vector>
 
-#include "core/opencv_error.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/png_io.h"
+#include "thinslab/core/opencv_error.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/png_io.h"
 
 namespace thinslab {
 namespace {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/session_io.h"
+#include "thinslab/core/session_io.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "core/exr_io.h"
-#include "core/file.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
 #include "tests/testing/frame_record_matchers.h"
 
 namespace thinslab {

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "core/session_recovery.h"
+#include "thinslab/core/session_recovery.h"
 
 #include <algorithm>
 #include <cstdio>
 #include <map>
 #include <sstream>
 
-#include "core/file.h"
-#include "core/session_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 

@@ -10,8 +10,8 @@
 #include <cstdint>
 #include <string>
 
-#include "core/session.h"
-#include "core/status.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -4,13 +4,13 @@
 // acquisition did not complete. The journal recovery itself is tested with the writer
 // (acquire/session_writer_test.cc) and through a killed `thinslab acquire`
 // (tests/cli_acquire_test.cc).
-#include "core/session_recovery.h"
+#include "thinslab/core/session_recovery.h"
 
 #include <gtest/gtest.h>
 
 #include <string>
 
-#include "core/session_io.h"
+#include "thinslab/core/session_io.h"
 #include "tests/testing/temp_dir.h"
 #include "tests/testing/tiny_session.h"
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "drivers/aravis_camera.h"
+#include "thinslab/drivers/aravis_camera.h"
 
 #include <arpa/inet.h>
 #include <arv.h>

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/camera.h"
+#include "thinslab/drivers/camera.h"
 
 // Aravis's own declaration (arvtypes.h), repeated so that this header needs no Aravis include.
 typedef struct _ArvBuffer ArvBuffer;

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "drivers/aravis_fake_camera.h"
+#include "thinslab/drivers/aravis_fake_camera.h"
 
 #include <arv.h>
 

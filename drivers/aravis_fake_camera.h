@@ -18,8 +18,8 @@
 #include <mutex>
 #include <string>
 
-#include "core/image.h"
-#include "core/status.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

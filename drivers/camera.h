@@ -8,9 +8,9 @@
 #include <optional>
 #include <string>
 
-#include "core/image.h"
-#include "core/session.h"
-#include "core/status.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "core/status.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

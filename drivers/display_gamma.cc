@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "drivers/display_gamma.h"
+#include "thinslab/drivers/display_gamma.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,8 +8,8 @@
 #include <map>
 #include <sstream>
 
-#include "core/file.h"
-#include "drivers/pattern_id.h"
+#include "thinslab/core/file.h"
+#include "thinslab/drivers/pattern_id.h"
 
 namespace thinslab {
 namespace {

@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/status.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

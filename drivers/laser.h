@@ -3,7 +3,7 @@
 // sim/SimLaserLobeRig.
 #pragma once
 
-#include "core/status.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "drivers/pattern_id.h"
+#include "thinslab/drivers/pattern_id.h"
 
 #include <algorithm>
 #include <cerrno>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "drivers/pattern_window.h"
+#include "thinslab/drivers/pattern_window.h"
 
 #include <SDL.h>
 
@@ -11,7 +11,7 @@
 #include <map>
 #include <sstream>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 namespace {

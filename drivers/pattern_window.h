@@ -13,11 +13,11 @@
 #include <utility>
 #include <vector>
 
-#include "core/image.h"
-#include "core/status.h"
-#include "drivers/display.h"
-#include "drivers/display_gamma.h"
-#include "drivers/pattern_id.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
+#include "thinslab/drivers/display.h"
+#include "thinslab/drivers/display_gamma.h"
+#include "thinslab/drivers/pattern_id.h"
 
 namespace thinslab {
 

@@ -2,7 +2,7 @@
 // PatternWindow under a private Xvfb: dots at sub-pixel positions are located in the renderer's
 // read-back and in the X server's own framebuffer (xwd -root), gamma tables are applied, and bad
 // display indices are reported. Also the pure gamma fitting and exposure rounding.
-#include "drivers/pattern_window.h"
+#include "thinslab/drivers/pattern_window.h"
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -20,7 +20,7 @@
 #include <random>
 #include <string>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 #include "tests/testing/temp_dir.h"
 #include "tests/testing/xvfb_server.h"
 #include "tests/testing/xwd_root.h"

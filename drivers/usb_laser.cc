@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "drivers/usb_laser.h"
+#include "thinslab/drivers/usb_laser.h"
 
 #include <libusb.h>
 

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "core/status.h"
-#include "drivers/laser.h"
+#include "thinslab/core/status.h"
+#include "thinslab/drivers/laser.h"
 
 namespace thinslab {
 

@@ -8,7 +8,7 @@
 // it when it is missing, so both ctest and a plain run work. Under AddressSanitizer the preload
 // library comes before libasan, which ASan accepts with verify_asan_link_order=0 (set only for
 // this re-executed process).
-#include "drivers/usb_laser.h"
+#include "thinslab/drivers/usb_laser.h"
 
 #include <errno.h>
 #include <gtest/gtest.h>

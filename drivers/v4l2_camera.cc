@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "drivers/v4l2_camera.h"
+#include "thinslab/drivers/v4l2_camera.h"
 
 #include <fcntl.h>
 #include <linux/videodev2.h>

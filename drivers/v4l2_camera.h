@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "core/session.h"
-#include "core/status.h"
-#include "drivers/camera.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
+#include "thinslab/drivers/camera.h"
 
 namespace thinslab {
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // V4l2Camera against a simulated kernel driver (FakeV4l2Device): the same ioctl structures and
 // errno conventions as videodev2.h, a real buffer queue, controls that round, and failure modes.
-#include "drivers/v4l2_camera.h"
+#include "thinslab/drivers/v4l2_camera.h"
 
 #include <fcntl.h>
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/dmf_clustering.h"
+#include "thinslab/fit/dmf_clustering.h"
 
 #include <glog/logging.h>
 

@@ -10,7 +10,7 @@
 // representative), and a few points that are known combinations of prototypes. Lobes that
 // barely overlap keep the nearest representatives of a combination predictable: its own
 // prototypes come first.
-#include "fit/dmf_clustering.h"
+#include "thinslab/fit/dmf_clustering.h"
 
 #include <gtest/gtest.h>
 

@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/dmf_evaluation.h"
+#include "thinslab/fit/dmf_evaluation.h"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
 
-#include "core/file.h"
-#include "core/math.h"
-#include "optics/microfacet.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
 namespace {

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "core/status.h"
-#include "fit/dmf_map_fit.h"
+#include "thinslab/core/status.h"
+#include "thinslab/fit/dmf_map_fit.h"
 
 namespace thinslab {
 

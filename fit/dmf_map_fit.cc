@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/dmf_map_fit.h"
+#include "thinslab/fit/dmf_map_fit.h"
 
-#include "fit/dmf_slice_shape.h"
+#include "thinslab/fit/dmf_slice_shape.h"
 
 #include <glog/logging.h>
 
@@ -10,8 +10,8 @@
 #include <random>
 #include <sstream>
 
-#include "core/math.h"
-#include "core/parallel.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/parallel.h"
 
 namespace thinslab {
 namespace {

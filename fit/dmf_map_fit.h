@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "core/image.h"
-#include "core/status.h"
-#include "fit/dmf_clustering.h"
-#include "fit/dmf_point_fit.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
+#include "thinslab/fit/dmf_clustering.h"
+#include "thinslab/fit/dmf_point_fit.h"
 
 namespace thinslab {
 

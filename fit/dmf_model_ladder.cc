@@ -1,17 +1,17 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/dmf_model_ladder.h"
+#include "thinslab/fit/dmf_model_ladder.h"
 
-#include "fit/ladder_choice.h"
-#include "fit/small_dense_solve.h"
+#include "thinslab/fit/ladder_choice.h"
+#include "thinslab/fit/small_dense_solve.h"
 
 #include <ceres/ceres.h>
 
 #include <chrono>
 #include <cmath>
 
-#include "core/math.h"
-#include "optics/dual_microfacet_btdf.h"
-#include "optics/microfacet.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dual_microfacet_btdf.h"
+#include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
 namespace {

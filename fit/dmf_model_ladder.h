@@ -24,8 +24,8 @@
 #include <array>
 #include <string>
 
-#include "fit/dmf_point_fit.h"
-#include "fit/single_interface_fit.h"
+#include "thinslab/fit/dmf_point_fit.h"
+#include "thinslab/fit/single_interface_fit.h"
 
 namespace thinslab {
 

@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/dmf_ndf_grid.h"
+#include "thinslab/fit/dmf_ndf_grid.h"
 
 #include <glog/logging.h>
 
 #include <algorithm>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

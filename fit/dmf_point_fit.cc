@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/dmf_point_fit.h"
+#include "thinslab/fit/dmf_point_fit.h"
 
 #include <ceres/ceres.h>
 #include <glog/logging.h>
@@ -10,9 +10,9 @@
 #include <cmath>
 #include <sstream>
 
-#include "fit/small_dense_solve.h"
-#include "optics/dual_microfacet_btdf.h"
-#include "optics/microfacet.h"
+#include "thinslab/fit/small_dense_solve.h"
+#include "thinslab/optics/dual_microfacet_btdf.h"
+#include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
 namespace {

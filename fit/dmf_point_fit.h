@@ -28,7 +28,7 @@
 #include <string>
 #include <vector>
 
-#include "fit/dmf_ndf_grid.h"
+#include "thinslab/fit/dmf_ndf_grid.h"
 
 namespace thinslab {
 

@@ -3,15 +3,15 @@
 // with two rough GGX faces (sim/rough_slab_photon_tracer.h: all internal bounces, Fresnel,
 // Smith masking), never by the dual-microfacet formula, with noise and a dot grid as on the
 // rig of Dai et al. Sec. 4.1.
-#include "fit/dmf_point_fit.h"
+#include "thinslab/fit/dmf_point_fit.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "core/math.h"
-#include "optics/microfacet.h"
-#include "sim/rough_slab_photon_tracer.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/microfacet.h"
+#include "thinslab/sim/rough_slab_photon_tracer.h"
 
 namespace thinslab {
 namespace {

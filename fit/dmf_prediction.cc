@@ -1,16 +1,16 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/dmf_prediction.h"
+#include "thinslab/fit/dmf_prediction.h"
 
 #include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
-#include "core/camera_model.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "fit/dmf_ndf_grid.h"
-#include "fit/dmf_point_fit.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/fit/dmf_ndf_grid.h"
+#include "thinslab/fit/dmf_point_fit.h"
 
 namespace thinslab {
 

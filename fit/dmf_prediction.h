@@ -16,11 +16,11 @@
 #include <string>
 #include <vector>
 
-#include "core/image.h"
-#include "core/rigid3.h"
-#include "core/session.h"
-#include "core/status.h"
-#include "fit/dmf_map_fit.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/rigid3.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
+#include "thinslab/fit/dmf_map_fit.h"
 
 namespace thinslab {
 

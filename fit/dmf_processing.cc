@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/dmf_processing.h"
+#include "thinslab/fit/dmf_processing.h"
 
 #include <algorithm>
 #include <chrono>
@@ -9,14 +9,14 @@
 #include <set>
 #include <sstream>
 
-#include "core/grid_size.h"
-#include "core/memory.h"
-#include "calib/board_rectification.h"
-#include "calib/hdr_merge.h"
-#include "core/camera_model.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "core/session_io.h"
+#include "thinslab/core/grid_size.h"
+#include "thinslab/core/memory.h"
+#include "thinslab/calib/board_rectification.h"
+#include "thinslab/calib/hdr_merge.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 

@@ -19,13 +19,13 @@
 #include <string>
 #include <vector>
 
-#include "calib/dot_geometry.h"
-#include "calib/exposure_check.h"
-#include "calib/frame_noise.h"
-#include "calib/session_calibration.h"
-#include "core/session_recovery.h"
-#include "core/status.h"
-#include "fit/dmf_map_fit.h"
+#include "thinslab/calib/dot_geometry.h"
+#include "thinslab/calib/exposure_check.h"
+#include "thinslab/calib/frame_noise.h"
+#include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/session_recovery.h"
+#include "thinslab/core/status.h"
+#include "thinslab/fit/dmf_map_fit.h"
 
 namespace thinslab {
 

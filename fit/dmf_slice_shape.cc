@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/dmf_slice_shape.h"
+#include "thinslab/fit/dmf_slice_shape.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 namespace {

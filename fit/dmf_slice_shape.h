@@ -17,7 +17,7 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "fit/dmf_point_fit.h"
+#include "thinslab/fit/dmf_point_fit.h"
 
 namespace thinslab {
 

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
 // Slices of one material seen from different sample points are one shape on the u grid
 // (fit/dmf_slice_shape.h) and different vectors when indexed by dot.
-#include "fit/dmf_slice_shape.h"
+#include "thinslab/fit/dmf_slice_shape.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "fit/single_interface_fit.h"
+#include "thinslab/fit/single_interface_fit.h"
 
 namespace thinslab {
 namespace {

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "fit/dmf_map_fit.h"
+#include "thinslab/fit/dmf_map_fit.h"
 
 namespace thinslab {
 namespace {

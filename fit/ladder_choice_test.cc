@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/ladder_choice.h"
+#include "thinslab/fit/ladder_choice.h"
 
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/laser_lobe_ladder.h"
+#include "thinslab/fit/laser_lobe_ladder.h"
 
 #include <chrono>
 #include <cmath>
@@ -7,10 +7,10 @@
 #include <sstream>
 #include <nlohmann/json.hpp>
 
-#include "core/math.h"
-#include "fit/ladder_choice.h"
-#include "optics/dirty_glass.h"
-#include "optics/thin_slab.h"
+#include "thinslab/core/math.h"
+#include "thinslab/fit/ladder_choice.h"
+#include "thinslab/optics/dirty_glass.h"
+#include "thinslab/optics/thin_slab.h"
 
 namespace thinslab {
 namespace {

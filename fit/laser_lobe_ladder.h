@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "core/status.h"
-#include "fit/phase_fit.h"
+#include "thinslab/core/status.h"
+#include "thinslab/fit/phase_fit.h"
 
 namespace thinslab {
 

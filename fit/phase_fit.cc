@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/phase_fit.h"
+#include "thinslab/fit/phase_fit.h"
 
 #include <ceres/ceres.h>
 #include <ceres/covariance.h>
@@ -9,9 +9,9 @@
 #include <cmath>
 #include <sstream>
 
-#include "core/math.h"
-#include "fit/cost_functions/laser_lobe_cost.h"
-#include "optics/dirty_glass.h"
+#include "thinslab/core/math.h"
+#include "thinslab/fit/cost_functions/laser_lobe_cost.h"
+#include "thinslab/optics/dirty_glass.h"
 
 namespace thinslab {
 

@@ -12,8 +12,8 @@
 #include <utility>
 #include <vector>
 
-#include "calib/laser_lobe_preparation.h"
-#include "core/status.h"
+#include "thinslab/calib/laser_lobe_preparation.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

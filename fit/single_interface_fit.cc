@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/single_interface_fit.h"
+#include "thinslab/fit/single_interface_fit.h"
 
 #include <ceres/ceres.h>
 
 #include <cmath>
 
-#include "fit/small_dense_solve.h"
-#include "optics/dual_microfacet_btdf.h"
-#include "optics/microfacet.h"
+#include "thinslab/fit/small_dense_solve.h"
+#include "thinslab/optics/dual_microfacet_btdf.h"
+#include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
 namespace {

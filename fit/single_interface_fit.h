@@ -11,7 +11,7 @@
 
 #include <Eigen/Core>
 
-#include "fit/dmf_point_fit.h"
+#include "thinslab/fit/dmf_point_fit.h"
 
 namespace thinslab {
 

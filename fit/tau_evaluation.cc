@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/tau_evaluation.h"
+#include "thinslab/fit/tau_evaluation.h"
 
 #include <nlohmann/json.hpp>
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/tau_fit.h"
+#include "thinslab/fit/tau_fit.h"
 
 #include <ceres/ceres.h>
 
@@ -12,12 +12,12 @@
 #include <sstream>
 #include <vector>
 
-#include "core/parallel.h"
-#include "core/math.h"
-#include "fit/cost_functions/shadow_attenuation_cost.h"
-#include "optics/dirty_glass.h"
-#include "fit/tau_prediction.h"
-#include "optics/shadow_map_model.h"
+#include "thinslab/core/parallel.h"
+#include "thinslab/core/math.h"
+#include "thinslab/fit/cost_functions/shadow_attenuation_cost.h"
+#include "thinslab/optics/dirty_glass.h"
+#include "thinslab/fit/tau_prediction.h"
+#include "thinslab/optics/shadow_map_model.h"
 
 namespace thinslab {
 

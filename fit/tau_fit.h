@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "calib/shadow_map_preparation.h"
-#include "core/image.h"
-#include "core/status.h"
+#include "thinslab/calib/shadow_map_preparation.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

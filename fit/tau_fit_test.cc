@@ -2,14 +2,14 @@
 // Unit tests of FitTau on hand-made rectified data. Accuracy against a more complete forward
 // model lives in tests/e2e_dirty_glass_test.cc; here: round trips, solver self-consistency,
 // masks, and that no NaN escapes.
-#include "fit/tau_fit.h"
+#include "thinslab/fit/tau_fit.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "optics/dirty_glass.h"
-#include "optics/shadow_map_model.h"
+#include "thinslab/optics/dirty_glass.h"
+#include "thinslab/optics/shadow_map_model.h"
 
 namespace thinslab {
 namespace {

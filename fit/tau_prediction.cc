@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/tau_prediction.h"
+#include "thinslab/fit/tau_prediction.h"
 
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
-#include "core/math.h"
-#include "optics/dirty_glass.h"
-#include "optics/henyey_greenstein.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dirty_glass.h"
+#include "thinslab/optics/henyey_greenstein.h"
 
 namespace thinslab {
 

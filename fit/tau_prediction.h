@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "core/image.h"
-#include "fit/tau_fit.h"
-#include "optics/shadow_map_model.h"
+#include "thinslab/core/image.h"
+#include "thinslab/fit/tau_fit.h"
+#include "thinslab/optics/shadow_map_model.h"
 
 namespace thinslab {
 

@@ -9,7 +9,7 @@
 #include <cmath>
 #include <vector>
 
-#include "optics/henyey_greenstein.h"
+#include "thinslab/optics/henyey_greenstein.h"
 
 namespace thinslab {
 

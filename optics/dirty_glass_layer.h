@@ -34,10 +34,10 @@
 #include <string>
 #include <type_traits>
 
-#include "core/math.h"
-#include "optics/fresnel.h"
-#include "optics/henyey_greenstein.h"
-#include "optics/thin_slab.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/fresnel.h"
+#include "thinslab/optics/henyey_greenstein.h"
+#include "thinslab/optics/thin_slab.h"
 
 namespace thinslab {
 

@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "optics/dirty_glass_layer.h"
+#include "thinslab/optics/dirty_glass_layer.h"
 
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "core/math.h"
-#include "optics/dirty_glass.h"
-#include "optics/fresnel.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dirty_glass.h"
+#include "thinslab/optics/fresnel.h"
 
 namespace thinslab {
 namespace {

@@ -17,9 +17,9 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
-#include "core/math.h"
-#include "optics/dirty_glass_layer.h"
-#include "optics/henyey_greenstein.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dirty_glass_layer.h"
+#include "thinslab/optics/henyey_greenstein.h"
 
 namespace thinslab {
 

@@ -2,14 +2,14 @@
 // Chi-square test of the HG-based sampling of the Gu layer against its reported density
 // (minimum expected count 5, significance 0.01), for index-matched and refractive layers, from
 // the air and from the glass.
-#include "optics/dirty_glass_sampling.h"
+#include "thinslab/optics/dirty_glass_sampling.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 #include <vector>
 
-#include "optics/sphere_test_util.h"
+#include "thinslab/optics/sphere_test_util.h"
 
 namespace thinslab {
 namespace {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "optics/dirty_glass.h"
+#include "thinslab/optics/dirty_glass.h"
 
 #include <gtest/gtest.h>
 

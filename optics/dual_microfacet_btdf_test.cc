@@ -4,7 +4,7 @@
 // and 9) equal finite-difference solid-angle ratios of the half-vector maps, Eq. 11 has the
 // right endpoints, the tabulated NDF reproduces an analytic one and is normalised, and no
 // virtual configuration transmits more than it receives.
-#include "optics/dual_microfacet_btdf.h"
+#include "thinslab/optics/dual_microfacet_btdf.h"
 
 #include <gtest/gtest.h>
 
@@ -13,10 +13,10 @@
 #include <cstdio>
 #include <random>
 
-#include "core/math.h"
-#include "optics/fresnel.h"
-#include "optics/microfacet.h"
-#include "optics/sphere_test_util.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/fresnel.h"
+#include "thinslab/optics/microfacet.h"
+#include "thinslab/optics/sphere_test_util.h"
 
 namespace thinslab {
 namespace {

@@ -10,7 +10,7 @@
 #include <Eigen/Core>
 #include <cmath>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

@@ -7,7 +7,7 @@
 
 #include <cmath>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "optics/henyey_greenstein.h"
+#include "thinslab/optics/henyey_greenstein.h"
 
 #include <gtest/gtest.h>
 

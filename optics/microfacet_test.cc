@@ -2,7 +2,7 @@
 // Laws of the microfacet distributions (Walter et al. 2007, Sec. 3): D normalisation, the
 // projected-area identity of the Smith G1, and sampling of m by D(m) |m . n|
 // (Sec. 5.3) checked by a chi-square test.
-#include "optics/microfacet.h"
+#include "thinslab/optics/microfacet.h"
 
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
@@ -11,7 +11,7 @@
 #include <random>
 #include <vector>
 
-#include "optics/sphere_test_util.h"
+#include "thinslab/optics/sphere_test_util.h"
 
 namespace thinslab {
 namespace {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "optics/shadow_map_model.h"
+#include "thinslab/optics/shadow_map_model.h"
 
 #include <glog/logging.h>
 
@@ -8,7 +8,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

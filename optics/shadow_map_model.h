@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "core/image.h"
+#include "thinslab/core/image.h"
 
 namespace thinslab {
 

@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "optics/shadow_map_model.h"
+#include "thinslab/optics/shadow_map_model.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "core/math.h"
-#include "optics/dirty_glass.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dirty_glass.h"
 
 namespace thinslab {
 namespace {

@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 namespace testing {

@@ -24,7 +24,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "optics/henyey_greenstein.h"
+#include "thinslab/optics/henyey_greenstein.h"
 
 namespace thinslab {
 

@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "optics/thin_slab.h"
+#include "thinslab/optics/thin_slab.h"
 
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 namespace {

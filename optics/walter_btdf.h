@@ -17,9 +17,9 @@
 #include <string>
 #include <vector>
 
-#include "core/math.h"
-#include "optics/fresnel.h"
-#include "optics/microfacet.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/fresnel.h"
+#include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
 

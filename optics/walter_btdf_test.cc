@@ -2,7 +2,7 @@
 // Laws of the rough dielectric of Walter et al. 2007 (optics/walter_btdf.h) and of the Fresnel
 // and Snell helpers (optics/fresnel.h): chi-square of the importance sampler against its pdf,
 // energy conservation, the smooth limit, reciprocity (with the eta^2 rule for transmission).
-#include "optics/walter_btdf.h"
+#include "thinslab/optics/walter_btdf.h"
 
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "optics/fresnel.h"
-#include "optics/microfacet.h"
-#include "optics/sphere_test_util.h"
+#include "thinslab/optics/fresnel.h"
+#include "thinslab/optics/microfacet.h"
+#include "thinslab/optics/sphere_test_util.h"
 
 namespace thinslab {
 namespace {

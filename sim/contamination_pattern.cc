@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/contamination_pattern.h"
+#include "thinslab/sim/contamination_pattern.h"
 
 #include <cmath>
 #include <random>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

@@ -15,14 +15,14 @@
 #include <fstream>
 #include <unistd.h>
 
-#include "acquire/dot_scan_session.h"
-#include "calib/dot_geometry.h"
-#include "core/camera_model.h"
-#include "core/exr_io.h"
-#include "core/math.h"
-#include "core/session_io.h"
-#include "drivers/pattern_id.h"
-#include "sim/synthesize_dot_scan_session.h"
+#include "thinslab/acquire/dot_scan_session.h"
+#include "thinslab/calib/dot_geometry.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/drivers/pattern_id.h"
+#include "thinslab/sim/synthesize_dot_scan_session.h"
 
 namespace thinslab {
 namespace {

@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/exposure_bracket_sim.h"
+#include "thinslab/sim/exposure_bracket_sim.h"
 
 #include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <sstream>
 
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "sim/sim_session.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/sim/sim_session.h"
 
 namespace thinslab {
 

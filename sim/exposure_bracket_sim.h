@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "core/image.h"
-#include "core/status.h"
-#include "sim/sensor_model.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
+#include "thinslab/sim/sensor_model.h"
 
 namespace thinslab {
 

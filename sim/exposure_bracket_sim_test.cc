@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/exposure_bracket_sim.h"
+#include "thinslab/sim/exposure_bracket_sim.h"
 
 #include <gtest/gtest.h>
 

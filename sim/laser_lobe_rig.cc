@@ -1,19 +1,19 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/laser_lobe_rig.h"
+#include "thinslab/sim/laser_lobe_rig.h"
 
 #include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <sstream>
 
-#include "acquire/session_writer.h"
-#include "core/file.h"
-#include "sim/sim_session.h"
-#include "core/math.h"
-#include "core/memory.h"
-#include "sim/sensor_model.h"
-#include "optics/dirty_glass.h"
-#include "optics/shadow_map_model.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/file.h"
+#include "thinslab/sim/sim_session.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/memory.h"
+#include "thinslab/sim/sensor_model.h"
+#include "thinslab/optics/dirty_glass.h"
+#include "thinslab/optics/shadow_map_model.h"
 
 namespace thinslab {
 

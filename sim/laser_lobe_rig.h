@@ -11,12 +11,12 @@
 #include <memory>
 #include <string>
 
-#include "acquire/laser_lobe_session.h"
-#include "core/image.h"
-#include "core/session.h"
-#include "sim/layer_monte_carlo.h"
-#include "sim/sim_board_camera.h"
-#include "sim/sim_flat_projector.h"
+#include "thinslab/acquire/laser_lobe_session.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/sim/layer_monte_carlo.h"
+#include "thinslab/sim/sim_board_camera.h"
+#include "thinslab/sim/sim_flat_projector.h"
 
 namespace thinslab {
 

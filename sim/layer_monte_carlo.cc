@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/layer_monte_carlo.h"
+#include "thinslab/sim/layer_monte_carlo.h"
 
 #include <cmath>
 #include <random>
 
-#include "core/math.h"
-#include "optics/henyey_greenstein.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/henyey_greenstein.h"
 
 namespace thinslab {
 namespace {

@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/layer_monte_carlo.h"
+#include "thinslab/sim/layer_monte_carlo.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "optics/dirty_glass.h"
+#include "thinslab/optics/dirty_glass.h"
 
 namespace thinslab {
 namespace {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/layer_path_tracer.h"
+#include "thinslab/sim/layer_path_tracer.h"
 
 #include <glog/logging.h>
 
@@ -7,9 +7,9 @@
 #include <cmath>
 #include <random>
 
-#include "core/math.h"
-#include "optics/fresnel.h"
-#include "optics/henyey_greenstein.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/fresnel.h"
+#include "thinslab/optics/henyey_greenstein.h"
 
 namespace thinslab {
 namespace {

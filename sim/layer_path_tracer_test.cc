@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/layer_path_tracer.h"
+#include "thinslab/sim/layer_path_tracer.h"
 
 #include <gtest/gtest.h>
 
@@ -9,10 +9,10 @@
 #include <functional>
 #include <string>
 
-#include "core/math.h"
-#include "optics/dirty_glass_layer.h"
-#include "optics/fresnel.h"
-#include "optics/thin_slab.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dirty_glass_layer.h"
+#include "thinslab/optics/fresnel.h"
+#include "thinslab/optics/thin_slab.h"
 
 namespace thinslab {
 namespace {

@@ -11,11 +11,11 @@
 #include <random>
 #include <vector>
 
-#include "core/math.h"
-#include "optics/dual_microfacet_btdf.h"
-#include "optics/microfacet.h"
-#include "sim/rough_slab_photon_tracer.h"
-#include "sim/rough_slab_test_util.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dual_microfacet_btdf.h"
+#include "thinslab/optics/microfacet.h"
+#include "thinslab/sim/rough_slab_photon_tracer.h"
+#include "thinslab/sim/rough_slab_test_util.h"
 
 namespace thinslab {
 namespace {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/rough_slab_photon_tracer.h"
+#include "thinslab/sim/rough_slab_photon_tracer.h"
 
 #include <glog/logging.h>
 
@@ -8,9 +8,9 @@
 #include <cmath>
 #include <random>
 
-#include "core/math.h"
-#include "optics/fresnel.h"
-#include "optics/microfacet.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/fresnel.h"
+#include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
 namespace {

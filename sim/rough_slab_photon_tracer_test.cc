@@ -2,7 +2,7 @@
 // Laws of the rough-slab photon tracer (sim/rough_slab_photon_tracer.h) and the comparison of
 // the dual-microfacet BTDF (optics/dual_microfacet_btdf.h, Dai et al. 2009, Eqs. 6, 10, 11)
 // against it, as in Dai et al. Fig. 3.
-#include "sim/rough_slab_photon_tracer.h"
+#include "thinslab/sim/rough_slab_photon_tracer.h"
 
 #include <gtest/gtest.h>
 
@@ -11,11 +11,11 @@
 #include <cstdio>
 #include <vector>
 
-#include "core/math.h"
-#include "optics/dual_microfacet_btdf.h"
-#include "optics/fresnel.h"
-#include "optics/microfacet.h"
-#include "sim/rough_slab_test_util.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dual_microfacet_btdf.h"
+#include "thinslab/optics/fresnel.h"
+#include "thinslab/optics/microfacet.h"
+#include "thinslab/sim/rough_slab_test_util.h"
 
 namespace thinslab {
 namespace {

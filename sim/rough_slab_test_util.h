@@ -8,8 +8,8 @@
 #include <cmath>
 #include <vector>
 
-#include "core/math.h"
-#include "sim/rough_slab_photon_tracer.h"
+#include "thinslab/core/math.h"
+#include "thinslab/sim/rough_slab_photon_tracer.h"
 
 namespace thinslab {
 namespace testing_util {

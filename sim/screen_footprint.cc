@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/screen_footprint.h"
+#include "thinslab/sim/screen_footprint.h"
 
 #include <algorithm>
 #include <cmath>

@@ -10,7 +10,7 @@
 
 #include <Eigen/Core>
 
-#include "core/image.h"
+#include "thinslab/core/image.h"
 
 namespace thinslab {
 

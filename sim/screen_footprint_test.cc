@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The exact footprint integral (sim/screen_footprint.h) against brute-force point sampling and
 // for flux conservation of a dot, which point samples per camera pixel do not conserve.
-#include "sim/screen_footprint.h"
+#include "thinslab/sim/screen_footprint.h"
 
 #include <gtest/gtest.h>
 

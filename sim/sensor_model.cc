@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/sensor_model.h"
+#include "thinslab/sim/sensor_model.h"
 
 #include <algorithm>
 #include <cmath>

@@ -8,8 +8,8 @@
 #include <random>
 #include <string>
 
-#include "core/image.h"
-#include "core/session.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
 
 namespace thinslab {
 

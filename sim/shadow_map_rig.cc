@@ -1,16 +1,16 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/shadow_map_rig.h"
+#include "thinslab/sim/shadow_map_rig.h"
 
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 
-#include "acquire/session_writer.h"
-#include "core/math.h"
-#include "core/memory.h"
-#include "sim/sensor_model.h"
-#include "optics/dirty_glass.h"
-#include "optics/shadow_map_model.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/memory.h"
+#include "thinslab/sim/sensor_model.h"
+#include "thinslab/optics/dirty_glass.h"
+#include "thinslab/optics/shadow_map_model.h"
 
 namespace thinslab {
 

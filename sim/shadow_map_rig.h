@@ -11,15 +11,15 @@
 #include <memory>
 #include <string>
 
-#include "acquire/shadow_map_session.h"
-#include "core/image.h"
-#include "core/session.h"
-#include "drivers/camera.h"
-#include "drivers/display.h"
-#include "sim/layer_monte_carlo.h"
-#include "sim/sensor_model.h"
-#include "sim/sim_board_camera.h"
-#include "sim/sim_flat_projector.h"
+#include "thinslab/acquire/shadow_map_session.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/drivers/camera.h"
+#include "thinslab/drivers/display.h"
+#include "thinslab/sim/layer_monte_carlo.h"
+#include "thinslab/sim/sensor_model.h"
+#include "thinslab/sim/sim_board_camera.h"
+#include "thinslab/sim/sim_flat_projector.h"
 
 namespace thinslab {
 

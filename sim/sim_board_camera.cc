@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/sim_board_camera.h"
+#include "thinslab/sim/sim_board_camera.h"
 
 #include <cmath>
 
-#include "acquire/session_writer.h"
-#include "core/math.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

@@ -7,8 +7,8 @@
 
 #include <functional>
 
-#include "drivers/camera.h"
-#include "sim/sensor_model.h"
+#include "thinslab/drivers/camera.h"
+#include "thinslab/sim/sensor_model.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/sim_chessboard.h"
+#include "thinslab/sim/sim_chessboard.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,8 +7,8 @@
 #include <string>
 #include <utility>
 
-#include "core/camera_model.h"
-#include "core/math.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

@@ -11,11 +11,11 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/image.h"
-#include "core/rigid3.h"
-#include "core/session.h"
-#include "core/status.h"
-#include "sim/sensor_model.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/rigid3.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
+#include "thinslab/sim/sensor_model.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/sim_display_transfer.h"
+#include "thinslab/sim/sim_display_transfer.h"
 
 #include <algorithm>
 #include <cmath>

@@ -12,8 +12,8 @@
 
 #include <string>
 
-#include "core/status.h"
-#include "drivers/display_gamma.h"
+#include "thinslab/core/status.h"
+#include "thinslab/drivers/display_gamma.h"
 
 namespace thinslab {
 

@@ -3,7 +3,7 @@
 // continuous at its toe, the 8-bit drive rounded as the PatternWindow rounds it, a table that
 // inverts the curve linearising the display up to the drive quantisation, and the CLI spec
 // round-tripping with errors that name the option.
-#include "sim/sim_display_transfer.h"
+#include "thinslab/sim/sim_display_transfer.h"
 
 #include <gtest/gtest.h>
 

@@ -1,17 +1,17 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/sim_dot_monitor.h"
+#include "thinslab/sim/sim_dot_monitor.h"
 
 #include <algorithm>
 #include <cmath>
 #include <map>
 
-#include "core/camera_model.h"
-#include "core/math.h"
-#include "core/memory.h"
-#include "drivers/pattern_id.h"
-#include "sim/sim_board_camera.h"
-#include "sim/sim_chessboard.h"
-#include "sim/screen_footprint.h"
+#include "thinslab/core/camera_model.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/memory.h"
+#include "thinslab/drivers/pattern_id.h"
+#include "thinslab/sim/sim_board_camera.h"
+#include "thinslab/sim/sim_chessboard.h"
+#include "thinslab/sim/screen_footprint.h"
 
 namespace thinslab {
 

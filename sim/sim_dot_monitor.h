@@ -31,15 +31,15 @@
 #include <string>
 #include <vector>
 
-#include "core/image.h"
-#include "core/session.h"
-#include "acquire/shadow_map_session.h"
-#include "drivers/camera.h"
-#include "drivers/display.h"
-#include "drivers/display_gamma.h"
-#include "sim/sensor_model.h"
-#include "sim/sim_display_transfer.h"
-#include "sim/slab_sample.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session.h"
+#include "thinslab/acquire/shadow_map_session.h"
+#include "thinslab/drivers/camera.h"
+#include "thinslab/drivers/display.h"
+#include "thinslab/drivers/display_gamma.h"
+#include "thinslab/sim/sensor_model.h"
+#include "thinslab/sim/sim_display_transfer.h"
+#include "thinslab/sim/slab_sample.h"
 
 namespace thinslab {
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <utility>
 
-#include "drivers/display.h"
+#include "thinslab/drivers/display.h"
 
 namespace thinslab {
 

@@ -7,11 +7,11 @@
 #include <filesystem>
 #include <string>
 
-#include "acquire/display_sync.h"
-#include "acquire/session_writer.h"
-#include "core/session.h"
-#include "core/version.h"
-#include "sim/sensor_model.h"
+#include "thinslab/acquire/display_sync.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/version.h"
+#include "thinslab/sim/sensor_model.h"
 
 namespace thinslab {
 

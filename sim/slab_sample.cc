@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/slab_sample.h"
+#include "thinslab/sim/slab_sample.h"
 
 #include <algorithm>
 #include <chrono>
@@ -7,9 +7,9 @@
 #include <sstream>
 #include <thread>
 
-#include "core/parallel.h"
-#include "optics/fresnel.h"
-#include "optics/microfacet.h"
+#include "thinslab/core/parallel.h"
+#include "thinslab/optics/fresnel.h"
+#include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
 namespace {

@@ -36,8 +36,8 @@
 #include <string>
 #include <vector>
 
-#include "core/status.h"
-#include "sim/rough_slab_photon_tracer.h"
+#include "thinslab/core/status.h"
+#include "thinslab/sim/rough_slab_photon_tracer.h"
 
 namespace thinslab {
 

@@ -3,16 +3,16 @@
 // Walter's rough dielectric composed with a flat face (Dai's rho_t / rho_b in the optical
 // frame), reciprocity of a two-sided anisotropic table against a forward trace, the preset and
 // option errors.
-#include "sim/slab_sample.h"
+#include "thinslab/sim/slab_sample.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 
-#include "core/math.h"
-#include "optics/dual_microfacet_btdf.h"
-#include "optics/microfacet.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dual_microfacet_btdf.h"
+#include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
 namespace {

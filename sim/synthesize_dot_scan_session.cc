@@ -1,17 +1,17 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/synthesize_dot_scan_session.h"
+#include "thinslab/sim/synthesize_dot_scan_session.h"
 
 #include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cmath>
 
-#include "acquire/session_writer.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "core/version.h"
-#include "sim/sim_session.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/core/version.h"
+#include "thinslab/sim/sim_session.h"
 
 namespace thinslab {
 namespace {

@@ -17,11 +17,11 @@
 #include <memory>
 #include <string>
 
-#include "acquire/dot_scan_session.h"
-#include "core/session.h"
-#include "core/status.h"
-#include "sim/sim_dot_monitor.h"
-#include "sim/slab_sample.h"
+#include "thinslab/acquire/dot_scan_session.h"
+#include "thinslab/core/session.h"
+#include "thinslab/core/status.h"
+#include "thinslab/sim/sim_dot_monitor.h"
+#include "thinslab/sim/slab_sample.h"
 
 namespace thinslab {
 

@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "sim/synthesize_shadow_session.h"
+#include "thinslab/sim/synthesize_shadow_session.h"
 
 #include <nlohmann/json.hpp>
 
 
-#include "acquire/session_writer.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/version.h"
-#include "sim/sim_session.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/version.h"
+#include "thinslab/sim/sim_session.h"
 
 namespace thinslab {
 

@@ -7,10 +7,10 @@
 
 #include <string>
 
-#include "acquire/shadow_map_session.h"
-#include "core/image.h"
-#include "core/status.h"
-#include "sim/shadow_map_rig.h"
+#include "thinslab/acquire/shadow_map_session.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
+#include "thinslab/sim/shadow_map_rig.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "synth/layer_synthesis.h"
+#include "thinslab/synth/layer_synthesis.h"
 
 #include <algorithm>
 #include <chrono>
@@ -8,7 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 namespace {

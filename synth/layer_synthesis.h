@@ -17,11 +17,11 @@
 #include <string>
 #include <vector>
 
-#include "core/image.h"
-#include "core/status.h"
-#include "synth/placement.h"
-#include "synth/prototype_library.h"
-#include "synth/quilting.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
+#include "thinslab/synth/placement.h"
+#include "thinslab/synth/prototype_library.h"
+#include "thinslab/synth/quilting.h"
 
 namespace thinslab {
 

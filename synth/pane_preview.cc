@@ -1,17 +1,17 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "synth/pane_preview.h"
+#include "thinslab/synth/pane_preview.h"
 
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/png_io.h"
-#include "core/math.h"
-#include "optics/dirty_glass_layer.h"
-#include "synth/layer_synthesis.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/png_io.h"
+#include "thinslab/core/math.h"
+#include "thinslab/optics/dirty_glass_layer.h"
+#include "thinslab/synth/layer_synthesis.h"
 
 namespace thinslab {
 namespace {

@@ -2,16 +2,16 @@
 // The pane preview shows the contrast reversal of Gu et al. 2007, Sec. 4 / Fig. 8: against
 // a bright daylight scene contaminated glass is darker than clean glass (attenuation, Eq. 5),
 // at night and under a collimated side beam it is brighter (scattering, Eqs. 3, 4, 6).
-#include "synth/pane_preview.h"
+#include "thinslab/synth/pane_preview.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "core/file.h"
-#include "core/math.h"
-#include "synth/layer_synthesis.h"
-#include "synth/prototype_library.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/synth/layer_synthesis.h"
+#include "thinslab/synth/prototype_library.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "synth/placement.h"
+#include "thinslab/synth/placement.h"
 
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <sstream>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

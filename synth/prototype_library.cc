@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "synth/prototype_library.h"
+#include "thinslab/synth/prototype_library.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,9 +7,9 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/version.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/version.h"
 
 namespace thinslab {
 namespace {

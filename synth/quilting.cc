@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "synth/quilting.h"
+#include "thinslab/synth/quilting.h"
 
 #include <algorithm>
 #include <chrono>
@@ -9,7 +9,7 @@
 #include <sstream>
 #include <vector>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 

@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "core/image.h"
-#include "core/status.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 

@@ -2,7 +2,7 @@
 // Image quilting (Efros and Freeman 2001) as used for dust by Gu et al. 2007, Sec. 5.3:
 // statistics of the source are reproduced, seams are invisible by a boundary-error measure
 // that a naive tiling fails, the seed fixes the output bit for bit, bad inputs are refused.
-#include "synth/quilting.h"
+#include "thinslab/synth/quilting.h"
 
 #include <gtest/gtest.h>
 
@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "core/math.h"
-#include "synth/prototype_library.h"
-#include "synth/texture_statistics.h"
+#include "thinslab/core/math.h"
+#include "thinslab/synth/prototype_library.h"
+#include "thinslab/synth/texture_statistics.h"
 
 namespace thinslab {
 namespace {

@@ -8,12 +8,12 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/math.h"
-#include "synth/layer_synthesis.h"
-#include "synth/placement.h"
-#include "synth/prototype_library.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
+#include "thinslab/synth/layer_synthesis.h"
+#include "thinslab/synth/placement.h"
+#include "thinslab/synth/prototype_library.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

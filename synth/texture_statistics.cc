@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "synth/texture_statistics.h"
+#include "thinslab/synth/texture_statistics.h"
 
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
-#include "core/math.h"
+#include "thinslab/core/math.h"
 
 namespace thinslab {
 namespace {

@@ -7,7 +7,7 @@
 
 #include <cstdint>
 
-#include "core/image.h"
+#include "thinslab/core/image.h"
 
 namespace thinslab {
 

@@ -24,10 +24,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "acquire/session_writer.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "drivers/display_gamma.h"
+#include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/drivers/display_gamma.h"
 #include "tests/testing/frame_record_matchers.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"

@@ -15,10 +15,10 @@
 #include <sstream>
 #include <string>
 
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/image.h"
-#include "core/session_io.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/session_io.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 

@@ -15,8 +15,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "core/file.h"
-#include "core/session_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
 #include "tests/testing/json_file.h"
 #include "tests/testing/run_ok.h"
 #include "tests/testing/temp_dir.h"

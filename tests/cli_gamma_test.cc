@@ -17,12 +17,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/response_io.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "drivers/display_gamma.h"
-#include "sim/sensor_model.h"
-#include "sim/sim_display_transfer.h"
+#include "thinslab/calib/response_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/drivers/display_gamma.h"
+#include "thinslab/sim/sensor_model.h"
+#include "thinslab/sim/sim_display_transfer.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 

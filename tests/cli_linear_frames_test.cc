@@ -14,8 +14,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "core/exr_io.h"
-#include "core/file.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
 #include "tests/testing/json_file.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "core/exr_io.h"
-#include "core/file.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
 #include "tests/testing/json_file.h"
 #include "tests/testing/run_ok.h"
 #include "tests/testing/temp_dir.h"

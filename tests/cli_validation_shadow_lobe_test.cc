@@ -16,8 +16,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "core/exr_io.h"
-#include "core/file.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
 #include "tests/testing/json_file.h"
 #include "tests/testing/run_ok.h"
 #include "tests/testing/temp_dir.h"

@@ -13,15 +13,15 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
-#include "app/stability_cases.h"
-#include "calib/rig_io.h"
-#include "core/exr_io.h"
-#include "core/file.h"
-#include "core/session_io.h"
-#include "fit/dmf_processing.h"
-#include "sim/exposure_bracket_sim.h"
-#include "sim/sim_chessboard.h"
-#include "sim/synthesize_dot_scan_session.h"
+#include "thinslab/app/stability_cases.h"
+#include "thinslab/calib/rig_io.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/fit/dmf_processing.h"
+#include "thinslab/sim/exposure_bracket_sim.h"
+#include "thinslab/sim/sim_chessboard.h"
+#include "thinslab/sim/synthesize_dot_scan_session.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 

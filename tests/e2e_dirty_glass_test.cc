@@ -6,8 +6,8 @@
 
 #include <cstdio>
 
-#include "app/commands.h"
-#include "core/exr_io.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/core/exr_io.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

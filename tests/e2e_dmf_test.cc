@@ -13,15 +13,15 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
-#include "core/exr_io.h"
-#include "core/math.h"
-#include "fit/dmf_evaluation.h"
-#include "fit/dmf_map_fit.h"
-#include "fit/dmf_model_ladder.h"
-#include "fit/dmf_processing.h"
-#include "fit/single_interface_fit.h"
-#include "optics/microfacet.h"
-#include "sim/synthesize_dot_scan_session.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/math.h"
+#include "thinslab/fit/dmf_evaluation.h"
+#include "thinslab/fit/dmf_map_fit.h"
+#include "thinslab/fit/dmf_model_ladder.h"
+#include "thinslab/fit/dmf_processing.h"
+#include "thinslab/fit/single_interface_fit.h"
+#include "thinslab/optics/microfacet.h"
+#include "thinslab/sim/synthesize_dot_scan_session.h"
 #include "tests/testing/run_thinslab.h"
 
 namespace thinslab {

@@ -13,11 +13,11 @@
 
 #include <nlohmann/json.hpp>
 
-#include "app/commands.h"
-#include "app/layer_from_phase.h"
-#include "core/file.h"
-#include "calib/exposure_check.h"
-#include "sim/laser_lobe_rig.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/layer_from_phase.h"
+#include "thinslab/core/file.h"
+#include "thinslab/calib/exposure_check.h"
+#include "thinslab/sim/laser_lobe_rig.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

@@ -9,10 +9,10 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
-#include "app/commands.h"
-#include "app/stability_cases.h"
-#include "core/exr_io.h"
-#include "core/file.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/stability_cases.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 

@@ -15,10 +15,10 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
-#include "fit/dmf_evaluation.h"
-#include "fit/dmf_map_fit.h"
-#include "fit/dmf_processing.h"
-#include "sim/synthesize_dot_scan_session.h"
+#include "thinslab/fit/dmf_evaluation.h"
+#include "thinslab/fit/dmf_map_fit.h"
+#include "thinslab/fit/dmf_processing.h"
+#include "thinslab/sim/synthesize_dot_scan_session.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

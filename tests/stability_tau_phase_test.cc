@@ -12,8 +12,8 @@
 #include <cstdio>
 #include <string>
 
-#include "app/stability_cases.h"
-#include "sim/contamination_pattern.h"
+#include "thinslab/app/stability_cases.h"
+#include "thinslab/sim/contamination_pattern.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {

@@ -7,7 +7,7 @@
 
 #include <ceres/ceres.h>
 
-#include "optics/dirty_glass.h"
+#include "thinslab/optics/dirty_glass.h"
 
 namespace thinslab {
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "fit/cost_functions/shadow_attenuation_cost.h"
+#include "thinslab/fit/cost_functions/shadow_attenuation_cost.h"
 
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>

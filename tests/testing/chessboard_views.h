@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "calib/camera_calibration.h"
-#include "sim/sim_chessboard.h"
+#include "thinslab/calib/camera_calibration.h"
+#include "thinslab/sim/sim_chessboard.h"
 
 namespace thinslab {
 

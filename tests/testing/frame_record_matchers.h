@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/session.h"
+#include "thinslab/core/session.h"
 
 namespace thinslab {
 

@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "core/file.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 

@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "core/session.h"
+#include "thinslab/core/session.h"
 
 namespace thinslab {
 

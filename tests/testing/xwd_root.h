@@ -9,9 +9,9 @@
 #include <string>
 #include <utility>
 
-#include "core/file.h"
-#include "core/image.h"
-#include "core/status.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/image.h"
+#include "thinslab/core/status.h"
 
 namespace thinslab {
 
