@@ -8,6 +8,7 @@
 #include "thinslab/calib/dot_geometry.h"
 #include "thinslab/calib/exposure_check.h"
 #include "thinslab/calib/session_calibration.h"
+#include "thinslab/pipeline/calibration_summary.h"
 
 namespace thinslab {
 
@@ -23,15 +24,4 @@ void AddCalibrationOptions(OptionParser* parser, SessionCalibrationOptions* opti
 void AddDotDetectionOptions(OptionParser* parser, DotGeometryOptions* options, double* dot_radius_px);
 // After parsing: an explicitly given --dot-radius-px must be > 0 (0 is only the default's meaning).
 Status CheckDotRadiusOption(const OptionParser& parser, double dot_radius_px);
-// The warning when the dot radius was assumed (ResolveDotRadiusPx's "default"), naming `manifest`.
-std::string AssumedDotRadiusWarning(const std::string& manifest);
-
-// {"rig": file or null, "intrinsics": bool, "pose": bool, "monitor": bool, "response": file or
-// null, "response_method": "linear" | "debevec" | "robertson"} (docs/format.md section 9).
-nlohmann::json CalibrationSummaryJson(const SessionCalibration& calibration);
-
-// The exposure check of an HDR merge (calib/exposure_check.h): {"reported_us", "measured_over_reported",
-// "pixels", "max_deviation" (-1 = not measured), "warning", "merged_with": "measured" | "reported"}.
-nlohmann::json ExposureCheckJson(const ExposureCheck& check, bool merged_with_measured_exposures);
-
 }  // namespace thinslab

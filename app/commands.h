@@ -14,6 +14,8 @@
 #include "thinslab/fit/tau_evaluation.h"
 #include "thinslab/fit/tau_fit.h"
 #include "thinslab/sim/sensor_model.h"
+#include "thinslab/pipeline/phase_pipeline.h"
+#include "thinslab/pipeline/tau_pipeline.h"
 #include "thinslab/sim/synthesize_shadow_session.h"
 
 namespace thinslab {
@@ -47,35 +49,6 @@ int RunCalibResponse(int argc, char** argv);  // app/calib_radiometry_commands.c
 int RunCalibHdr(int argc, char** argv);       // app/calib_radiometry_commands.cc
 int RunCalibFlat(int argc, char** argv);      // app/calib_radiometry_commands.cc
 int RunCalibGamma(int argc, char** argv);     // app/calib_gamma_command.cc
-
-// Shared by `fit tau` and `demo`: reads the session, rectifies, fits and writes
-// <out_dir>/{tau.exr, tau_falsecolor.png, tau_plain_falsecolor.png, summary.json, summary.txt,
-// options.ini} atomically (the folder appears complete or not at all). If the session holds
-// ground_truth/tau.exr, also writes comparison.json and fills `comparison`.
-struct FitTauRun {
-  TauFitOptions fit;
-  int supersample = 4;
-  double board_distance_m = 0;  // 0: from the manifest.
-  SessionCalibrationOptions calibration;  // CAPTURE/calib/ files applied (calib/session_calibration.h).
-  // A `fit phase` output folder whose choice sets fit.layer_g and fit.refine_scattering
-  // (app/layer_from_phase.h); "" = the options as given.
-  std::string phase_dir;
-  bool allow_incomplete_capture = false;  // --allow-incomplete (app/capture_options.h).
-  // Fit the even and the odd shadow frames separately too and compare them (summary.json
-  // `consistency`; needs >= 2 shadow frames): the noise part of sigma_tau put to a test.
-  bool split_half_check = true;
-  std::string options_ini;      // Effective options, written as options.ini.
-};
-Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,
-                      TauFitSummary* summary, TauComparison* comparison, bool* has_truth);
-
-// `fit phase`: reads a laser-lobe session, fits Gu Eq. 8 and writes <out_dir>/{summary.json,
-// summary.txt, rings.csv, lobe_plot.png, options.ini} atomically.
-// allow_incomplete_capture: --allow-incomplete (app/capture_options.h).
-Status FitPhasePipeline(const std::string& session_dir, const std::string& out_dir, const PhaseFitOptions& options,
-                        const LaserLobePreparationOptions& preparation, bool allow_incomplete_capture,
-                        const std::string& options_ini, PhaseFitSummary* summary,
-                        std::vector<LaserRing>* rings, LaserLadderResult* ladder = nullptr);
 
 // Adds the sim rig and session options to a parser (used by `sim shadow-maps` and `demo`).
 class OptionParser;

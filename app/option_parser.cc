@@ -179,15 +179,4 @@ std::string OptionParser::ToIni() const {
   return out.str();
 }
 
-std::string Digest(const std::string& text) {
-  uint64_t hash = 14695981039346656037ULL;  // FNV-1a 64-bit offset basis.
-  for (unsigned char c : text) {
-    hash ^= c;
-    hash *= 1099511628211ULL;
-  }
-  char buf[17];
-  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(hash));
-  return buf;
-}
-
 }  // namespace thinslab

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "thinslab/core/file.h"  // Digest
 #include "thinslab/core/status.h"
 
 namespace thinslab {
@@ -49,8 +50,5 @@ class OptionParser {
   bool help_requested_ = false;
   std::vector<std::string> set_names_;
 };
-
-// FNV-1a 64-bit hash as 16 hex digits (provenance digest of options.ini).
-std::string Digest(const std::string& text);
 
 }  // namespace thinslab

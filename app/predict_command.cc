@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // `thinslab predict CAPTURE`: what a fit predicts for light states it was not fitted to (issue
-// #23 section 4). Shadow maps and laser lobes: app/predict_layer.cc. Dot scans: the images a
+// #23 section 4). Shadow maps and laser lobes: pipeline/predict_layer.cc. Dot scans: the images a
 // dot-scan fit predicts for dots (fit/dmf_prediction.h), in the capture's camera, against the
 // capture's frames of those dots where it has them. Writes OUT (default CAPTURE/fit/predict) atomically:
 //   dot_<k>.exr    channels predicted, valid (and measured, variance: the HDR merge of the
@@ -16,7 +16,7 @@
 #include "thinslab/app/capture_options.h"
 #include "thinslab/app/commands.h"
 #include "thinslab/app/option_parser.h"
-#include "thinslab/app/prediction_report.h"
+#include "thinslab/pipeline/prediction_report.h"
 #include "thinslab/calib/frame_noise.h"
 #include "thinslab/calib/hdr_merge.h"
 #include "thinslab/core/exr_io.h"

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/core/file.h"
 
+#include <cstdio>
 #include <fcntl.h>
 #include <signal.h>
 #include <stdio.h>
@@ -225,6 +226,17 @@ Status StagedDirectory::Commit() {
   }
   committed_ = true;
   return SyncDirectory(ParentOf(final_dir_)).WithContext(final_dir_);
+}
+
+std::string Digest(const std::string& text) {
+  uint64_t hash = 14695981039346656037ULL;  // FNV-1a 64-bit offset basis.
+  for (unsigned char c : text) {
+    hash ^= c;
+    hash *= 1099511628211ULL;
+  }
+  char buf[17];
+  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(hash));
+  return buf;
 }
 
 }  // namespace thinslab

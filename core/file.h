@@ -74,4 +74,7 @@ class StagedDirectory {
   bool committed_ = false;
 };
 
+// FNV-1a 64-bit hash as 16 hex digits (the provenance digest of options.ini in every output).
+std::string Digest(const std::string& text);
+
 }  // namespace thinslab

@@ -14,7 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "thinslab/app/commands.h"
-#include "thinslab/app/layer_from_phase.h"
+#include "thinslab/pipeline/layer_from_phase.h"
 #include "thinslab/core/file.h"
 #include "thinslab/calib/exposure_check.h"
 #include "thinslab/sim/laser_lobe_rig.h"

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "thinslab/app/prediction_report.h"
+#include "thinslab/pipeline/prediction_report.h"
 
 #include <cmath>
 #include <cstdio>

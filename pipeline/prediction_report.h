@@ -34,7 +34,7 @@ nlohmann::json LobeBandsJson(const LobePrediction& prediction);
 std::string LobeBandsText(const LobePrediction& prediction);
 
 // `thinslab predict` (app/predict_command.cc) for the fits of shadow-map and laser-lobe captures
-// (app/predict_layer.cc): writes into `out` and commits it.
+// (pipeline/predict_layer.cc): writes into `out` and commits it.
 struct PredictRun {
   std::string session_dir, fit_dir, out_dir;
   SessionCalibrationOptions calibration;

@@ -10,8 +10,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "thinslab/app/layer_from_phase.h"
-#include "thinslab/app/prediction_report.h"
+#include "thinslab/pipeline/layer_from_phase.h"
+#include "thinslab/pipeline/prediction_report.h"
 #include "thinslab/calib/board_rectification.h"
 #include "thinslab/calib/laser_lobe_preparation.h"
 #include "thinslab/calib/shadow_map_preparation.h"

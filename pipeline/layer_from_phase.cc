@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "thinslab/app/layer_from_phase.h"
+#include "thinslab/pipeline/layer_from_phase.h"
 
 #include <nlohmann/json.hpp>
 

@@ -1,0 +1,250 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "thinslab/pipeline/tau_pipeline.h"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include "thinslab/pipeline/calibration_summary.h"
+#include "thinslab/pipeline/capture_reading.h"
+#include "thinslab/pipeline/layer_from_phase.h"
+#include "thinslab/pipeline/prediction_report.h"
+#include "thinslab/calib/shadow_map_preparation.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/false_color.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/version.h"
+
+namespace thinslab {
+namespace {
+
+std::string RigidToJson(const Rigid3d& t) {
+  nlohmann::json j;
+  j["rotation_wxyz"] = {t.rotation.w(), t.rotation.x(), t.rotation.y(), t.rotation.z()};
+  j["translation_m"] = {t.translation.x(), t.translation.y(), t.translation.z()};
+  return j.dump();
+}
+
+std::string PointToJson(const Eigen::Vector2d& p) { return nlohmann::json({p.x(), p.y()}).dump(); }
+
+std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, const CaptureCompleteness& capture,
+                        const TauFitOptions& fit, const PhaseLayerChoice* phase, double color_max,
+                        const nlohmann::json& validation, const nlohmann::json& consistency) {
+  nlohmann::json j;
+  j["format"] = "thinslab-fit-summary";
+  j["format_version"] = "1.0";
+  j["falsecolor_range"] = {0.0, color_max};
+  j["result"] = s.IsUsable() ? "success" : "failure";
+  j["message"] = s.message;
+  j["grid"] = {s.width, s.height};
+  j["pixels"] = {{"total", s.pixels_total}, {"fitted", s.pixels_fitted}, {"dark", s.pixels_dark},
+                 {"saturated", s.pixels_saturated}, {"outside", s.pixels_outside}, {"clamped", s.pixels_clamped},
+                 {"next_to_clamped", s.pixels_next_to_clamped}, {"dark_noise", s.pixels_dark_noise},
+                 {"mixed", s.pixels_mixed}};
+  j["resolution"] = {{"map_pitch_m", s.pixel_pitch_m},
+                     {"camera_footprint_m", {{"median", s.camera_footprint_median_m},
+                                             {"min", s.camera_footprint_min_m},
+                                             {"max", s.camera_footprint_max_m}}},
+                     {"camera_pixels_per_map_pixel", s.camera_pixels_per_map_pixel},
+                     {"max_mixed_tau_step", fit.max_mixed_tau_step}};
+  j["sigma_tau_parts_median"] = {{"noise", s.median_sigma_noise},
+                                 {"reference", s.median_sigma_reference},
+                                 {"multiple_scattering", s.median_sigma_model},
+                                 {"resolution", s.median_sigma_resolution}};
+  j["consistency"] = consistency;
+  j["warnings"] = s.warnings;
+  j["reference"] = {{"mode", fit.reference},
+                    {"pixels_judged_clean", s.pixels_judged_clean >= 0 ? nlohmann::json(s.pixels_judged_clean)
+                                                                       : nlohmann::json(nullptr)}};
+  j["outer_iterations"] = s.outer_iterations;
+  j["final_max_update_tau"] = s.final_max_update_tau;
+  j["mean_scattered_fraction"] = s.mean_scattered_fraction;
+  j["calibration"] = CalibrationSummaryJson(data.calibration);
+  j["capture"] = CaptureSummaryJson(capture);
+  j["layer"] = {{"albedo", fit.layer_albedo}, {"g", fit.layer_g}, {"refine_scattering", fit.refine_scattering},
+                {"source", phase != nullptr ? phase->summary_path : std::string("options")}};
+  if (phase != nullptr) j["layer"]["phase_ladder_rung"] = phase->rung;
+  j["frames"] = {{"shadow", data.num_shadow_frames}, {"reference", data.num_reference_frames},
+                 {"dark", data.num_dark_frames}};
+  j["noise"] = data.noise.ToJson();
+  j["timings_s"] = {{"plain", s.plain_s}, {"refine", s.refine_s}, {"fit_total", s.total_s}};
+  // What predict reads back to recompute the model (fit/tau_prediction.h).
+  j["model_options"] = {{"tau_max", fit.tau_max}, {"kernel_max_angle_deg", fit.kernel_max_angle_deg}};
+  j["validation"] = validation;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace
+
+Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,
+                      TauFitSummary* summary, TauComparison* comparison, bool* has_truth) {
+  *has_truth = false;
+  // Options are checked before any frame is read (the stages check them again).
+  std::string options_error;
+  if (!run.fit.Check(&options_error)) return Status::Error(session_dir + ": " + options_error);
+  // Refused before the work: an output that would replace an input or a folder of the user's.
+  StagedDirectory out(out_dir, "fit tau", {{session_dir, {"fit"}}, {run.phase_dir, {}}});
+  THINSLAB_RETURN_IF_ERROR(out.Init());
+  Session session;
+  CaptureCompleteness capture;
+  THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, run.allow_incomplete_capture, &session, &capture));
+  ShadowMapPreparationOptions prep_options;
+  prep_options.supersample = run.supersample;
+  prep_options.board_distance_m = run.board_distance_m;
+  prep_options.calibration = run.calibration;
+  prep_options.load_flat_field = run.fit.reference == "flat";
+  prep_options.split_halves = run.split_half_check;
+  TauFitOptions fit = run.fit;
+  PhaseLayerChoice phase;
+  if (!run.phase_dir.empty()) {
+    THINSLAB_RETURN_IF_ERROR(ReadPhaseLayerChoice(run.phase_dir, &phase));
+    ApplyPhaseLayerChoice(phase, &fit);
+  }
+  RectifiedShadowMaps data;
+  THINSLAB_RETURN_IF_ERROR(PrepareShadowMaps(session_dir, session, prep_options, &data));
+  int64_t in_view = 0, saturated = 0;
+  for (size_t i = 0; i < data.outside.data().size(); ++i) {
+    if (data.outside.data()[i] > 0) continue;
+    ++in_view;
+    if (data.saturated.data()[i] > 0) ++saturated;
+  }
+  if (in_view == 0) {
+    return Status::Error(JoinPath(session_dir, kSessionManifestName) +
+                         ": rig.cameras[0].cam_from_sample: the camera does not see the board region");
+  }
+  if (saturated * 2 > in_view) {
+    std::ostringstream msg;
+    msg << session_dir << ": frames: the shadow or reference frames are saturated over "
+        << (100 * saturated / in_view) << "% of the board region; lower exposure_time_us";
+    return Status::Error(msg.str());
+  }
+  TauMaps maps;
+  THINSLAB_RETURN_IF_ERROR(FitTau(fit, data, &maps, summary).WithContext(session_dir));
+  // Split-half consistency (issue #24): the noise part of sigma_tau is what two fits of disjoint
+  // halves of the frames must agree within.
+  nlohmann::json consistency;
+  if (!run.split_half_check) {
+    consistency = {{"skipped", "--split-half-check false"}};
+  } else if (data.halves.size() != 2) {
+    consistency = {{"skipped", std::to_string(data.num_shadow_frames) +
+                                   " shadow frame(s): the check needs at least 2 (capture frames_per_state >= 2)"}};
+  } else {
+    std::vector<TauMaps> half_maps(2);
+    std::string failed;
+    for (int k = 0; k < 2 && failed.empty(); ++k) {
+      RectifiedShadowMaps half = data;
+      half.halves.clear();
+      half.shadow = data.halves[k].shadow;
+      half.shadow_variance = data.halves[k].shadow_variance;
+      half.reference = data.halves[k].reference;
+      half.reference_variance = data.halves[k].reference_variance;
+      TauFitSummary half_summary;
+      const Status fitted = FitTau(fit, half, &half_maps[k], &half_summary);
+      if (!fitted.ok()) failed = (k == 0 ? "even frames: " : "odd frames: ") + fitted.message();
+    }
+    if (!failed.empty()) {
+      consistency = {{"skipped", "a half did not fit: " + failed}};
+    } else {
+      SplitHalfConsistency c = CompareSplitHalves(half_maps[0].tau, half_maps[0].sigma_tau_noise, half_maps[1].tau,
+                                                  half_maps[1].sigma_tau_noise);
+      c.shared_reference = data.halves_share_reference;
+      consistency = nlohmann::json::parse(c.ToJson());
+      if (c.pixels >= 100 && (c.rms_z > 1.5 || c.rms_z < 1 / 1.5)) {
+        std::ostringstream msg;
+        msg.precision(3);
+        msg << "split-half consistency: the fits of the even and the odd frames differ by " << c.rms_z
+            << " times what the noise part of sigma_tau says (RMS over " << c.pixels
+            << " pixels; 1 expected): the frames' noise model is off (gain, read noise; docs/format.md 4.1) or the "
+               "light changed between frames";
+        summary->warnings.push_back(msg.str());
+      }
+    }
+  }
+  for (const std::string& w : summary->warnings) std::cerr << "warning: " << session_dir << ": " << w << "\n";
+  // Validation shadow frames (issue #23 section 4): the same light state as the fitted ones, so
+  // the prediction is the fitted shadow the map reproduces, with that shadow's noise (the
+  // reference cancels); the comparison shows repeatability (a moved sample, drifting light) and
+  // whether the noise model holds. `thinslab predict` predicts other board distances.
+  nlohmann::json validation;  // null: no validation frames.
+  std::string validation_text;
+  if (data.num_validation_frames > 0) {
+    const std::vector<ShadowPredictionRegion> regions =
+        CompareShadowWithMaps(fit, maps.tau, data, maps.reference, data.shadow_variance, false, nullptr);
+    validation = {{"frames", data.num_validation_frames},
+                  {"board_distance_m", data.board_distance_m},
+                  {"regions", ShadowRegionsJson(regions)}};
+    validation_text = "validation shadow (" + std::to_string(data.num_validation_frames) + " frames), predicted from the map:\n" +
+                      ShadowRegionsText(regions);
+  }
+
+  const SampleInfo& sample = session.rig.sample;
+  Image& tau = maps.tau;
+  tau.attributes()["format_version"] = "1.0";
+  tau.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
+  tau.attributes()["git_hash"] = THINSLAB_GIT_HASH;
+  tau.attributes()["options_digest"] = "fnv1a64:" + Digest(run.options_ini);
+  tau.attributes()["cam_from_sample"] = RigidToJson(data.camera.cam_from_sample);
+  tau.attributes()["source_session"] = session_dir;
+  tau.attributes()["region_min_m"] = PointToJson(sample.region_min_m);
+  tau.attributes()["region_max_m"] = PointToJson(sample.region_max_m);
+  tau.attributes()["pixel_pitch_m"] = nlohmann::json(data.pixel_pitch_m).dump();
+  tau.attributes()["model"] = fit.refine_scattering ? "gu2007_eq5_eq6_refined" : "gu2007_eq7";
+  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "tau.exr"), tau));
+
+  const Image status = tau.Channel(2);
+  FalseColorOptions color;
+  color.label = "tau";
+  color.max_value = 1.5;
+  const Image tau_only = tau.Channel(0);
+  for (float v : tau_only.data()) color.max_value = std::max(color.max_value, static_cast<double>(v));
+  color.max_value = std::min(color.max_value, fit.tau_max);
+  THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_falsecolor.png"), tau, 0, &status, color));
+  color.label = "tau Eq.7";
+  THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_plain_falsecolor.png"), tau, 1, &status, color));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value, validation, consistency)));
+  THINSLAB_RETURN_IF_ERROR(
+      WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport() + validation_text));
+  if (!validation_text.empty()) std::cout << validation_text;
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
+
+  const std::string truth_path = JoinPath(JoinPath(session_dir, "ground_truth"), "tau.exr");
+  // The comparison with a simulated capture's ground truth is optional: when it cannot be made
+  // (a truth of another grid, an unreadable file), the fit is still written, with a warning.
+  auto compare_with_truth = [&]() -> Status {
+    Image truth;
+    THINSLAB_RETURN_IF_ERROR(ReadExr(truth_path, &truth));
+    THINSLAB_RETURN_IF_ERROR(CompareTauWithTruth(tau, truth, 0.05, 1.5, comparison).WithContext(truth_path));
+    *has_truth = true;
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "comparison.json"), comparison->ToJson()));
+    color.label = "tau true";
+    THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "truth_falsecolor.png"), truth, 0, nullptr, color));
+    Image error(tau.width(), tau.height(), {"error"});
+    const int tc = truth.ChannelIndex("tau") >= 0 ? truth.ChannelIndex("tau") : 0;
+    for (int y = 0; y < tau.height(); ++y) {
+      for (int x = 0; x < tau.width(); ++x) error.at(x, y) = tau.at(x, y, 0) - truth.at(x, y, tc);
+    }
+    FalseColorOptions err_color;
+    err_color.label = "tau err";
+    err_color.min_value = -0.1;
+    err_color.max_value = 0.1;
+    THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "error_falsecolor.png"), error, 0, &status, err_color));
+    return Status::Ok();
+  };
+  if (FileExists(truth_path)) {
+    const Status compared = compare_with_truth();
+    if (!compared.ok()) {
+      *has_truth = false;
+      for (const char* name : {"comparison.json", "truth_falsecolor.png", "error_falsecolor.png"}) {
+        std::remove(JoinPath(out.path(), name).c_str());
+      }
+      std::cerr << "warning: the fit is written without the ground-truth comparison: " << compared.message() << "\n";
+    }
+  }
+  return out.Commit();
+}
+
+}  // namespace thinslab
