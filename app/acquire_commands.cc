@@ -29,10 +29,19 @@
 #include "thinslab/core/file.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
+// The device back-ends this build has (CMake options THINSLAB_WITH_*; app/CMakeLists.txt).
+#if THINSLAB_WITH_ARAVIS
 #include "thinslab/drivers/aravis_camera.h"
+#endif
+#if THINSLAB_WITH_SDL
 #include "thinslab/drivers/pattern_window.h"
+#endif
+#if THINSLAB_WITH_USB
 #include "thinslab/drivers/usb_laser.h"
+#endif
+#if THINSLAB_WITH_V4L2
 #include "thinslab/drivers/v4l2_camera.h"
+#endif
 #include "thinslab/sim/laser_lobe_rig.h"
 #include "thinslab/sim/shadow_map_rig.h"
 #include "thinslab/sim/sim_board_camera.h"
@@ -223,11 +232,18 @@ void AddCommonOptions(OptionParser* parser, CommonOptions* o, bool sim) {
 // The real devices named on the command line, opened before anything is written.
 struct RealDevices {
   std::unique_ptr<Camera> camera;
-  std::unique_ptr<PatternWindow> window;
-  std::unique_ptr<UsbLaser> laser;
+  std::unique_ptr<Projector> window;
+  int window_width = 0, window_height = 0;
+  std::unique_ptr<Laser> laser;
   std::string display_name, laser_name;
   GammaTable gamma_table = IdentityGammaTable();  // --gamma-table, read before any device opens.
 };
+
+// The error for a device whose back-end this build left out.
+[[maybe_unused]] Status NotBuilt(const std::string& device, const std::string& option) {
+  return Status::Error(device + ": this thinslab was built without " + option +
+                       " (reconfigure with -D" + option + "=ON and the library installed; docs/drivers.md)");
+}
 
 Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
   if (o.camera == "sim") return Status::Ok();
@@ -235,6 +251,7 @@ Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
     return Status::Error("thinslab acquire: option --camera-timeout-s must be > 0");
   }
   if (o.camera.rfind("aravis:", 0) == 0) {
+#if THINSLAB_WITH_ARAVIS
     AravisCameraOptions options;
     options.address = o.camera.substr(7);
     options.frame_timeout_s = o.camera_timeout_s;
@@ -251,8 +268,12 @@ Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
     THINSLAB_RETURN_IF_ERROR(OpenAravisCamera(options, &camera).WithContext("camera " + o.camera));
     devices->camera = std::move(camera);
     return Status::Ok();
+#else
+    return NotBuilt("camera " + o.camera, "THINSLAB_WITH_ARAVIS");
+#endif
   }
   if (o.camera.rfind("v4l2:", 0) == 0) {
+#if THINSLAB_WITH_V4L2
     V4l2CameraOptions options;
     options.device = o.camera.substr(5);
     options.timeout_s = o.camera_timeout_s;
@@ -267,6 +288,9 @@ Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
     THINSLAB_RETURN_IF_ERROR(OpenV4l2Camera(options, &camera).WithContext("camera " + o.camera));
     devices->camera = std::move(camera);
     return Status::Ok();
+#else
+    return NotBuilt("camera " + o.camera, "THINSLAB_WITH_V4L2");
+#endif
   }
   return Status::Error("thinslab acquire: option --camera = '" + o.camera +
                        "': expected sim, aravis:<ip or device id> or v4l2:<device path>");
@@ -279,20 +303,34 @@ Status OpenRealDevices(const CommonOptions& o, RealDevices* devices) {
   }
   THINSLAB_RETURN_IF_ERROR(OpenRealCamera(o, devices));
   if (o.display >= 0) {
+#if THINSLAB_WITH_SDL
     PatternWindowOptions options;
     options.display_index = o.display;
     options.gamma_table_path = o.gamma_table;
-    THINSLAB_RETURN_IF_ERROR(OpenPatternWindow(options, &devices->window).WithContext("display " + std::to_string(o.display)));
+    std::unique_ptr<PatternWindow> window;
+    THINSLAB_RETURN_IF_ERROR(OpenPatternWindow(options, &window).WithContext("display " + std::to_string(o.display)));
+    devices->window_width = window->width();
+    devices->window_height = window->height();
+    devices->window = std::move(window);
+#else
+    return NotBuilt("display " + std::to_string(o.display), "THINSLAB_WITH_SDL");
+#endif
     devices->display_name = "display " + std::to_string(o.display);
   } else if (o.display < -1) {
     return Status::Error("thinslab acquire: option --display = " + std::to_string(o.display) +
                          ": display indices are >= 0 (-1 = none)");
   }
   if (!o.laser.empty()) {
+#if THINSLAB_WITH_USB
     UsbLaserOptions options;
     THINSLAB_RETURN_IF_ERROR(ParseUsbLaserSpec(o.laser, &options).WithContext("laser '" + o.laser + "'"));
-    THINSLAB_RETURN_IF_ERROR(OpenUsbLaser(options, &devices->laser).WithContext("laser '" + o.laser + "'"));
-    devices->laser_name = "laser " + devices->laser->device_name();
+    std::unique_ptr<UsbLaser> laser;
+    THINSLAB_RETURN_IF_ERROR(OpenUsbLaser(options, &laser).WithContext("laser '" + o.laser + "'"));
+    devices->laser_name = "laser " + laser->device_name();
+    devices->laser = std::move(laser);
+#else
+    return NotBuilt("laser '" + o.laser + "'", "THINSLAB_WITH_USB");
+#endif
   }
   return Status::Ok();
 }
@@ -788,8 +826,8 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   TrackedProjector projector(teed ? static_cast<Projector*>(&tee) : display,
                              devices.window ? devices.display_name : "monitor (sim)", &tracker);
   if (dot_scan) {
-    dots.monitor_width_px = sim ? monitor.monitor_width_px : devices.window->width();
-    dots.monitor_height_px = sim ? monitor.monitor_height_px : devices.window->height();
+    dots.monitor_width_px = sim ? monitor.monitor_width_px : devices.window_width;
+    dots.monitor_height_px = sim ? monitor.monitor_height_px : devices.window_height;
     if (validation_dots < 0 || validation_dots > 10000) {
       return Fail(Status::Error("thinslab acquire dot-scan: --validation-dots must be in [0, 10000], got " +
                                 std::to_string(validation_dots)));

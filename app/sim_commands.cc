@@ -2,16 +2,13 @@
 #include <iostream>
 
 #include "thinslab/app/commands.h"
+#include "thinslab/app/data_directory.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/output_guard.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/sim/contamination_pattern.h"
 #include "thinslab/sim/synthesize_dot_scan_session.h"
-
-#ifndef THINSLAB_DATA_DIR
-#define THINSLAB_DATA_DIR "data"
-#endif
 
 namespace thinslab {
 
@@ -52,7 +49,7 @@ void AddSimShadowOptions(OptionParser* parser, SyntheticShadowSessionOptions* op
 }
 
 Status LoadOrGenerateTau(const std::string& tau_path, uint64_t seed, Image* tau) {
-  const std::string path = tau_path.empty() ? std::string(THINSLAB_DATA_DIR) + "/patterns/demo_contamination.exr" : tau_path;
+  const std::string path = tau_path.empty() ? DataDirectory() + "/patterns/demo_contamination.exr" : tau_path;
   Image image;
   Status status = ReadExr(path, &image);
   if (!status.ok()) {

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "thinslab/app/commands.h"
+#include "thinslab/app/data_directory.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/core/output_guard.h"
 #include "thinslab/core/exr_io.h"
@@ -181,7 +182,7 @@ int RunLayer(int argc, char** argv) {
     std::cout << parser.Usage();
     return 0;
   }
-  if (library.empty()) library = std::string(THINSLAB_DATA_DIR) + "/prototypes";
+  if (library.empty()) library = DataDirectory() + "/prototypes";
   if (status.ok() && spec_path.empty() == prototypes.empty()) {
     status = Status::Error("synth layer: give exactly one of --spec FILE or --prototypes a,b,c");
   }

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "thinslab/app/commands.h"
+#include "thinslab/app/data_directory.h"
 #include "thinslab/core/version.h"
 
 namespace {
@@ -24,7 +25,8 @@ struct Command {
 };
 
 int RunVersion(int, char**) {
-  std::cout << "thinslab " << THINSLAB_VERSION_STRING << " (git " << THINSLAB_GIT_HASH << ")\n";
+  std::cout << "thinslab " << THINSLAB_VERSION_STRING << " (git " << THINSLAB_GIT_HASH << ")\n"
+            << "data: " << thinslab::DataDirectory() << "\n";
   return 0;
 }
 
@@ -33,7 +35,7 @@ int RunHelp(int, char**);
 const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = {
       {"help", RunHelp, "list the commands"},
-      {"version", RunVersion, "print version and git hash"},
+      {"version", RunVersion, "print version, git hash and the data folder"},
       {"info", thinslab::RunInfo, "validate a capture session and summarise it"},
       {"acquire", thinslab::RunAcquire, "run a capture session on a rig (default: the simulated rig)"},
       {"sim", thinslab::RunSim, "simulate a capture session (sim shadow-maps | laser | dot-scan | pattern)"},

@@ -37,6 +37,9 @@ function(thinslab_add_test)
   # GTEST_FILTER (optional): the gtest filter this ctest entry runs; further entries for the same
   # executable come from thinslab_add_test_entry.
   cmake_parse_arguments(ARG "" "NAME;TIMEOUT;GTEST_FILTER" "SRCS;LINK_LIBS;LABELS" ${ARGN})
+  if(NOT BUILD_TESTING)
+    return()
+  endif()
   string(REPLACE "/" "_" exe ${ARG_NAME})
   add_executable(${exe} ${ARG_SRCS})
   target_compile_options(${exe} PRIVATE ${THINSLAB_WARNING_FLAGS})
@@ -50,6 +53,12 @@ endfunction()
 # Another ctest entry (its own name, labels and gtest filter) for a test executable.
 function(thinslab_add_test_entry)
   cmake_parse_arguments(ARG "" "NAME;EXE;TIMEOUT;GTEST_FILTER" "LABELS" ${ARGN})
+  # The device-free stages' tests carry the label `refit` (the refit-only tree runs them, and
+  # the target thinslab_refit_tests builds them).
+  if(ARG_NAME MATCHES "^(core|optics|calib|fit|pipeline)/")
+    list(APPEND ARG_LABELS refit)
+    add_dependencies(thinslab_refit_tests ${ARG_EXE})
+  endif()
   if(ARG_GTEST_FILTER)
     add_test(NAME ${ARG_NAME} COMMAND ${ARG_EXE} --gtest_filter=${ARG_GTEST_FILTER})
   else()

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
 # THE test command (README, .ci/run): installs Debian packages, configures, builds, runs every
-# test; then, unless THINSLAB_SKIP_SANITIZERS=1, rebuilds with ASan+UBSan and runs every test
+# test; installs and builds a downstream project against the install; builds the refit-only
+# (device-free) tree and runs the device-free stages' tests there; then, unless THINSLAB_SKIP_SANITIZERS=1, rebuilds with ASan+UBSan and runs every test
 # again except those labelled `matrix` (simulation-heavy stability and knob sweeps, whose code
 # the e2e tests run under the sanitizers too: the laser lobe's seed and g entry, the tau/g stability matrix,
 # the acquired dot-scan chain of cli_gamma_test).
@@ -14,6 +15,22 @@ jobs=$(nproc)
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DTHINSLAB_WERROR=ON
 cmake --build build -j"$jobs"
 (cd build && ctest --output-on-failure -j"$jobs")
+# Installed: the CLI finds its data, a downstream project builds against the prefix (issue #25).
+bash scripts/test_install.sh build
+
+# The refit-only tree (issue #25): no device library (Aravis, V4L2, SDL2, libusb, umockdev) and no
+# Google Benchmark is even looked for; the device-free stages' tests (label `refit`) run there,
+# and its install serves the downstream project too.
+cmake -S . -B build-refit -G Ninja -DCMAKE_BUILD_TYPE=Release -DTHINSLAB_WERROR=ON -DTHINSLAB_BUILD_BENCH=OFF \
+  -DTHINSLAB_WITH_ARAVIS=OFF -DTHINSLAB_WITH_V4L2=OFF -DTHINSLAB_WITH_SDL=OFF -DTHINSLAB_WITH_USB=OFF
+if grep -iE "aravis|sdl2|libusb|umockdev|benchmark" build-refit/build.ninja | grep -qv "THINSLAB_WITH_"; then
+  echo "thinslab: the refit-only tree refers to a device or benchmark library:" >&2
+  grep -ioE "[^ ]*(aravis|sdl2|libusb|umockdev|benchmark)[^ ]*" build-refit/build.ninja | grep -v THINSLAB_WITH_ | sort -u >&2
+  exit 1
+fi
+cmake --build build-refit -j"$jobs" --target thinslab thinslab_refit_tests
+(cd build-refit && ctest --output-on-failure -j"$jobs" -L refit)
+bash scripts/test_install.sh build-refit
 
 if [ "${THINSLAB_SKIP_SANITIZERS:-0}" != "1" ]; then
   # -g1: line tables and function names, all the sanitizers' stack traces need; full debug info
