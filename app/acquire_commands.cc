@@ -245,7 +245,7 @@ struct RealDevices {
                        " (reconfigure with -D" + option + "=ON and the library installed; docs/drivers.md)");
 }
 
-Status OpenRealCamera(const CommonOptions& o, RealDevices* devices) {
+Status OpenRealCamera(const CommonOptions& o, [[maybe_unused]] RealDevices* devices) {
   if (o.camera == "sim") return Status::Ok();
   if (!(o.camera_timeout_s > 0)) {
     return Status::Error("thinslab acquire: option --camera-timeout-s must be > 0");

@@ -7,7 +7,6 @@
 #include <map>
 #include <sstream>
 #include <set>
-#include <thread>
 
 #include "thinslab/core/parallel.h"
 #include "thinslab/core/session_io.h"
@@ -214,20 +213,14 @@ Status CheckFrames(const std::vector<HdrFrame>& frames, int* bit_depth) {
   return Status::Ok();
 }
 
+// fn(y0, y1) on num_threads contiguous blocks of rows (core/parallel.h's ParallelFor).
 template <typename Fn>
 void ParallelRows(int height, int num_threads, const Fn& fn) {
-  num_threads = std::max(1, std::min(num_threads, height));
-  if (num_threads == 1) {
-    fn(0, height);
-    return;
-  }
-  std::vector<std::thread> threads;
-  for (int t = 0; t < num_threads; ++t) {
-    const int y0 = static_cast<int>(static_cast<int64_t>(height) * t / num_threads);
-    const int y1 = static_cast<int>(static_cast<int64_t>(height) * (t + 1) / num_threads);
-    threads.emplace_back([&fn, y0, y1] { fn(y0, y1); });
-  }
-  for (std::thread& thread : threads) thread.join();
+  const int blocks = std::max(1, std::min(num_threads, height));
+  ParallelFor(blocks, blocks, [&](int t) {
+    fn(static_cast<int>(static_cast<int64_t>(height) * t / blocks),
+       static_cast<int>(static_cast<int64_t>(height) * (t + 1) / blocks));
+  });
 }
 
 }  // namespace

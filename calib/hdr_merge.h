@@ -35,6 +35,7 @@
 #include "thinslab/core/image.h"
 #include "thinslab/core/session.h"
 #include "thinslab/core/status.h"
+#include "thinslab/core/parallel.h"
 
 namespace thinslab {
 
@@ -71,7 +72,7 @@ struct HdrMergeOptions {
   // Optional weights per raw DN value (size 2^bit_depth) replacing the hat of kHat, e.g.
   // OpenCV's triangle. Saturated samples still get zero weight.
   std::vector<double> weight_table;
-  int num_threads = 2;        // Rows are split between this many threads.
+  int num_threads = DefaultThreadCount();        // Rows are split between this many threads.
   bool use_lookup_tables = true;
 
   bool Check(std::string* error) const;

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // ParallelFor: body(k) for k in [0, n) on num_threads threads (the caller's included), items
 // handed out one at a time by an atomic counter, so uneven per-item costs balance themselves.
-// body must be safe to call concurrently for different k.
+// body must be safe to call concurrently for different k. The one thread loop of thinslab (the
+// per-point fits, the model ladder, the HDR merge's row blocks, the slab tables' regions).
 #pragma once
 
 #include <algorithm>
@@ -15,6 +16,13 @@ namespace thinslab {
 // The most threads any thinslab option accepts (--threads; docs/cli.md). Options::Check()
 // refuses more; ParallelFor also never starts more threads than items.
 inline constexpr int kMaxThreads = 256;
+
+// The default of every `num_threads` option: all cores the system reports (1 when it reports
+// none), at most kMaxThreads.
+inline int DefaultThreadCount() {
+  const unsigned cores = std::thread::hardware_concurrency();
+  return std::clamp(static_cast<int>(cores), 1, kMaxThreads);
+}
 
 template <typename Body>
 void ParallelFor(int n, int num_threads, const Body& body) {

@@ -15,6 +15,7 @@
 #include "thinslab/core/status.h"
 #include "thinslab/fit/dmf_clustering.h"
 #include "thinslab/fit/dmf_point_fit.h"
+#include "thinslab/core/parallel.h"
 
 namespace thinslab {
 
@@ -89,7 +90,7 @@ struct DmfMapFitOptions {
   DmfPointFitOptions point;
   bool cluster = true;
   DmfClusteringOptions clustering;
-  int num_threads = 2;
+  int num_threads = DefaultThreadCount();
   bool Check(std::string* error) const;
 };
 

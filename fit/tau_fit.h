@@ -18,6 +18,7 @@
 #include "thinslab/calib/shadow_map_preparation.h"
 #include "thinslab/core/image.h"
 #include "thinslab/core/status.h"
+#include "thinslab/core/parallel.h"
 
 namespace thinslab {
 
@@ -68,7 +69,7 @@ struct TauFitOptions {
   int max_outer_iterations = 15;
   double outer_tolerance_tau = 2e-4;  // Stop when no pixel's tau moves more than this.
   double kernel_max_angle_deg = 80;   // Scattered light beyond this angle is neglected.
-  int num_threads = 2;
+  int num_threads = DefaultThreadCount();
 
   bool Check(std::string* error) const;
 };

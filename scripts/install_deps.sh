@@ -29,6 +29,11 @@ packages=(
   nlohmann-json3-dev
   openexr
   gnuplot-nox
+  pybind11-dev
+  python3-dev
+  python3-numpy
+  python3-pytest
+  python3-matplotlib
   bc
 )
 

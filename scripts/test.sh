@@ -11,8 +11,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install_deps.sh
 jobs=$(nproc)
+# The Python tests use Debian's interpreter, whose numpy, pytest and matplotlib install_deps.sh
+# installs (not another python3 earlier on PATH, e.g. pyenv's).
+python=/usr/bin/python3
 
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DTHINSLAB_WERROR=ON
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DTHINSLAB_WERROR=ON -DPython3_EXECUTABLE="$python"
 cmake --build build -j"$jobs"
 (cd build && ctest --output-on-failure -j"$jobs")
 # Installed: the CLI finds its data, a downstream project builds against the prefix (issue #25).
@@ -22,6 +25,7 @@ bash scripts/test_install.sh build
 # Google Benchmark is even looked for; the device-free stages' tests (label `refit`) run there,
 # and its install serves the downstream project too.
 cmake -S . -B build-refit -G Ninja -DCMAKE_BUILD_TYPE=Release -DTHINSLAB_WERROR=ON -DTHINSLAB_BUILD_BENCH=OFF \
+  -DPython3_EXECUTABLE="$python" \
   -DTHINSLAB_WITH_ARAVIS=OFF -DTHINSLAB_WITH_V4L2=OFF -DTHINSLAB_WITH_SDL=OFF -DTHINSLAB_WITH_USB=OFF
 if grep -iE "aravis|sdl2|libusb|umockdev|benchmark" build-refit/build.ninja | grep -qv "THINSLAB_WITH_"; then
   echo "thinslab: the refit-only tree refers to a device or benchmark library:" >&2
@@ -36,7 +40,8 @@ if [ "${THINSLAB_SKIP_SANITIZERS:-0}" != "1" ]; then
   # -g1: line tables and function names, all the sanitizers' stack traces need; full debug info
   # made the sanitizer build about half of the CI time (docs/benchmarks.md, CI).
   cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTHINSLAB_SANITIZE=ON \
-    -DTHINSLAB_BUILD_BENCH=OFF -DTHINSLAB_WERROR=ON -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG"
+    -DTHINSLAB_BUILD_BENCH=OFF -DTHINSLAB_WERROR=ON -DTHINSLAB_WITH_PYTHON=OFF \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG"
   cmake --build build-asan -j"$jobs"
   # System libraries (glib, SDL, X11) keep some allocations until exit; scripts/lsan.supp lists
   # those by library name only, never thinslab code.

@@ -44,4 +44,16 @@ if grep -qE "set\(THINSLAB_WITH_ARAVIS (ON|1|TRUE|YES)\)" "$prefix/lib/cmake/thi
 elif [ -e "$work/example/camera_options" ]; then
   fail "camera_options was built against an install without Aravis"
 fi
+# The Python package, when built: importable from the prefix, finding the install's data.
+if [ -d "$prefix"/lib/python3*/dist-packages/thinslab ]; then
+  site=$(echo "$prefix"/lib/python3*/dist-packages)
+  python=$(sed -n 's/^Python3_EXECUTABLE:[A-Z]*=//p' "$build/CMakeCache.txt")
+  (cd "$work" && PYTHONPATH="$site" "${python:-python3}" -c "
+import os, thinslab
+assert os.environ['THINSLAB_DATA_DIR'] == '$prefix/share/thinslab/data', os.environ.get('THINSLAB_DATA_DIR')
+fit = thinslab.read_fit('$work/api_fit')
+assert fit.summary['result'] == 'success' and fit.maps['tau'].shape == tuple(fit.summary['grid'][::-1])
+print('python', thinslab.__version__, 'from', thinslab.__file__)") > "$work/python.log" 2>&1 ||
+    { cat "$work/python.log"; fail "the installed Python package does not work"; }
+fi
 echo "test_install: $build installed, examples/refit built against it, API fit = CLI fit"

@@ -5,7 +5,6 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
-#include <thread>
 
 #include "thinslab/core/parallel.h"
 #include "thinslab/optics/fresnel.h"
@@ -218,14 +217,7 @@ Status SlabSample::Create(const SlabSampleOptions& options_in, const Eigen::Vect
     table->seed = t.seed;
     sample->tables_[k] = std::move(table);
   };
-  const int threads = std::max(1, std::min(options.num_threads, n));
-  std::vector<std::thread> workers;
-  for (int w = 0; w < threads; ++w) {
-    workers.emplace_back([&, w] {
-      for (int k = w; k < n; k += threads) trace(k);
-    });
-  }
-  for (std::thread& t : workers) t.join();
+  ParallelFor(n, options.num_threads, trace);  // Each region has its own seed: deterministic.
   sample->tracing_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   *out = std::move(sample);
   return Status::Ok();

@@ -38,6 +38,7 @@
 
 #include "thinslab/core/status.h"
 #include "thinslab/sim/rough_slab_photon_tracer.h"
+#include "thinslab/core/parallel.h"
 
 namespace thinslab {
 
@@ -82,7 +83,7 @@ struct SlabSampleOptions {
   double thickness_m = 0;
   int table_bins = 64;                  // N x N cells of the orthographic exit-direction table.
   int max_interactions = 64;
-  int num_threads = 2;  // Regions traced in parallel (each has its own seed: deterministic).
+  int num_threads = DefaultThreadCount();  // Regions traced in parallel (each has its own seed: deterministic).
   uint64_t seed = 1;
 
   Status Check() const;  // Errors name SlabSampleOptions::<field> (and the region).
