@@ -20,6 +20,7 @@
 #include "thinslab/app/calibration_options.h"
 #include "thinslab/app/capture_options.h"
 #include "thinslab/app/commands.h"
+#include "thinslab/app/command_progress.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/pipeline/dmf_pipeline.h"
 #include "thinslab/core/exr_io.h"
@@ -98,6 +99,8 @@ int RunFitDmf(int argc, char** argv) {
   }
   if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "dmf");
   run.options_ini = parser.ToIni();
+  run.fit.progress = CommandProgress();
+  run.processing.progress = run.fit.progress;
   std::string brief;
   if (status.ok()) status = FitDmfPipeline(session_dir, out_dir, run, &brief);
   if (!status.ok()) {

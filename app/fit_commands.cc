@@ -8,6 +8,7 @@
 
 #include "thinslab/app/calibration_options.h"
 #include "thinslab/app/capture_options.h"
+#include "thinslab/app/command_progress.h"
 #include "thinslab/app/commands.h"
 #include "thinslab/pipeline/layer_from_phase.h"
 #include "thinslab/app/option_parser.h"
@@ -71,6 +72,7 @@ int RunFit(int argc, char** argv) {
   }
   if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "tau");
   run.options_ini = parser.ToIni();
+  run.fit.progress = CommandProgress();
   TauFitSummary summary;
   TauComparison comparison;
   bool has_truth = false;

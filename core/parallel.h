@@ -11,6 +11,8 @@
 #include <thread>
 #include <vector>
 
+#include "thinslab/core/progress.h"
+
 namespace thinslab {
 
 // The most threads any thinslab option accepts (--threads; docs/cli.md). Options::Check()
@@ -42,6 +44,39 @@ void ParallelFor(int n, int num_threads, const Body& body) {
   }
   worker();
   for (auto& t : threads) t.join();
+}
+
+// ParallelFor with progress: the calling thread reports the items done after each item it
+// runs (core/progress.h: the callback never runs on a worker); once the callback cancels, no
+// thread starts another item. Returns false when cancelled.
+template <typename Body>
+bool ParallelFor(int n, int num_threads, const Body& body, ProgressTracker* progress) {
+  if (progress == nullptr) {
+    ParallelFor(n, num_threads, body);
+    return true;
+  }
+  std::atomic<int> next{0};
+  std::atomic<int64_t> done{0};
+  auto worker = [&](bool reports) {
+    for (int k = next++; k < n && !progress->cancelled(); k = next++) {
+      body(k);
+      const int64_t finished = ++done;
+      if (reports) progress->Report(finished);
+    }
+  };
+  std::vector<std::thread> threads;
+  const int count = std::min({std::max(1, num_threads), std::max(1, n), kMaxThreads});
+  for (int t = 1; t < count; ++t) {
+    try {
+      threads.emplace_back(worker, false);
+    } catch (const std::system_error&) {
+      break;
+    }
+  }
+  worker(true);
+  for (auto& t : threads) t.join();
+  if (!progress->cancelled()) progress->Report(n);
+  return !progress->cancelled();
 }
 
 }  // namespace thinslab

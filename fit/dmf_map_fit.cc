@@ -223,10 +223,16 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   maps->timings.clustering_s = Seconds(t);
 
   t = std::chrono::steady_clock::now();
-  ParallelFor(static_cast<int>(direct.size()), options.num_threads, [&](int k) {
-    const int p = direct[k];
-    maps->fits[p] = FitDualMicrofacetPoint(slices.Slice(p), grid, options.point);
-  });
+  ProgressTracker progress(options.progress, "fit dmf: point fits (Dai Eqs. 14-19)",
+                           static_cast<int64_t>(direct.size()));
+  const bool finished = ParallelFor(
+      static_cast<int>(direct.size()), options.num_threads,
+      [&](int k) {
+        const int p = direct[k];
+        maps->fits[p] = FitDualMicrofacetPoint(slices.Slice(p), grid, options.point);
+      },
+      &progress);
+  if (!finished) return Status::Error("FitDualMicrofacetMaps: cancelled");
   maps->num_fitted = static_cast<int>(direct.size());
   maps->timings.representative_fit_s = Seconds(t);
 

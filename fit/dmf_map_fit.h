@@ -91,6 +91,8 @@ struct DmfMapFitOptions {
   bool cluster = true;
   DmfClusteringOptions clustering;
   int num_threads = DefaultThreadCount();
+  // Reports the per-point fits; returning false cancels the fit (core/progress.h).
+  ProgressCallback progress;
   bool Check(std::string* error) const;
 };
 

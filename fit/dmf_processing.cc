@@ -358,7 +358,10 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     }
     return Status::Ok();
   };
+  ProgressTracker progress(options.progress, "fit dmf: dot frames (HDR merge, Eq. 12)",
+                           static_cast<int64_t>(by_dot.size()));
   for (const auto& [yx, frames] : by_dot) {
+    if (!progress.Report(q)) return Status::Error("PrepareDotScanSlices: cancelled");
     const DotRecord& dot = geometry.dots[q];
     const double l_q = dot.saturated || !dot.measured() ? median_radiance : dot.radiance_dn_per_us;
     THINSLAB_RETURN_IF_ERROR(measure(frames, dot.position_in_sample_m, l_q, DotName(displayed[q]),
@@ -370,6 +373,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
                                      }));
     ++q;
   }
+  progress.Report(q);
   // Validation dots (FrameRecord::validation): measured the same way, placed from the fitted
   // monitor geometry with the median L_q (they are not in the all-dots grid), never fitted.
   std::map<std::pair<double, double>, std::vector<const FrameRecord*>> validation_by_dot;

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "thinslab/calib/dot_geometry.h"
+#include "thinslab/core/progress.h"
 #include "thinslab/calib/exposure_check.h"
 #include "thinslab/calib/frame_noise.h"
 #include "thinslab/calib/session_calibration.h"
@@ -52,6 +53,9 @@ struct DmfProcessingOptions {
   // A capture whose acquisition did not complete (core/session_recovery.h) is refused unless
   // kAccept (`fit dmf --allow-incomplete`); its journaled frames are read either way.
   IncompleteCapture incomplete_capture = IncompleteCapture::kRefuse;
+  // Reports the dots' frames as they are merged into slices (Eq. 12); returning false cancels
+  // (core/progress.h).
+  ProgressCallback progress;
   bool Check(std::string* error) const;
 };
 

@@ -324,7 +324,10 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     // the Ceres solve of the prior, which costs ~10x a closed-form iteration.
     bool polishing = false;
     int polish_iterations = 0;
+    ProgressTracker progress(options.progress, "fit tau: scattered-light iterations (Gu Eq. 6)",
+                             options.max_outer_iterations);
     for (int outer = 0; outer < options.max_outer_iterations; ++outer) {
+      if (!progress.Report(outer)) return Status::Error("FitTau: cancelled");
       for (size_t i = 0; i < n; ++i) tau_image.data()[i] = static_cast<float>(std::clamp(tau[i], 0.0, options.tau_max));
       const Image s_board = bank.Scattered(e0, tau_image);
       for (size_t i = 0; i < n; ++i) {
@@ -372,6 +375,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       }
       if (converged || polish_iterations >= 2) break;
     }
+    progress.Report(options.max_outer_iterations);  // Done (converged iterations end early).
   }
   const auto t_refine = Clock::now();
   summary->refine_s = Seconds(t_plain, t_refine);

@@ -70,6 +70,8 @@ struct TauFitOptions {
   double outer_tolerance_tau = 2e-4;  // Stop when no pixel's tau moves more than this.
   double kernel_max_angle_deg = 80;   // Scattered light beyond this angle is neglected.
   int num_threads = DefaultThreadCount();
+  // Reports the scattered-light iterations; returning false cancels the fit (core/progress.h).
+  ProgressCallback progress;
 
   bool Check(std::string* error) const;
 };

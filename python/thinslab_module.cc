@@ -15,10 +15,12 @@
 #include <pybind11/stl.h>
 
 #include <iostream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "thinslab/app/command_progress.h"
 #include "thinslab/app/commands.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/session_io.h"
@@ -69,7 +71,7 @@ class CapturedStreams {
 // args = [command, subcommand..., positional..., "--option", "value", ...] as on the command
 // line. Returns (exit code, stdout, stderr). The streams are process-wide: one command at a time
 // (the GIL is held).
-py::tuple RunCommand(const std::vector<std::string>& args) {
+py::tuple RunCommand(const std::vector<std::string>& args, const py::object& progress) {
   if (args.empty()) throw py::value_error("run_command: no command given");
   const CommandFn fn = FindCommand(args[0]);
   if (fn == nullptr) throw py::value_error("run_command: '" + args[0] + "' is not a command the bindings run "
@@ -77,14 +79,37 @@ py::tuple RunCommand(const std::vector<std::string>& args) {
   std::vector<std::string> rest(args.begin() + 1, args.end());
   std::vector<char*> argv;
   for (std::string& a : rest) argv.push_back(a.data());
+  // progress(dict) -> False cancels; it runs on this thread, which holds the GIL (core/progress.h).
+  // An exception it raises cancels the command and is raised again after it.
+  std::shared_ptr<py::error_already_set> raised;
+  if (!progress.is_none()) {
+    SetCommandProgress([&](const ProgressUpdate& u) {
+      try {
+        const py::object answer = progress(py::dict(py::arg("stage") = u.stage, py::arg("done") = u.done,
+                                                    py::arg("total") = u.total, py::arg("elapsed_s") = u.elapsed_s,
+                                                    py::arg("eta_s") = u.eta_s));
+        return answer.is_none() || answer.cast<bool>();
+      } catch (py::error_already_set& e) {
+        raised = std::make_shared<py::error_already_set>(std::move(e));
+        return false;
+      }
+    });
+  }
   int code = 0;
   std::string out, err;
   {
     CapturedStreams streams;
-    code = fn(static_cast<int>(argv.size()), argv.data());
+    try {
+      code = fn(static_cast<int>(argv.size()), argv.data());
+    } catch (...) {
+      SetCommandProgress({});
+      throw;
+    }
     out = streams.out();
     err = streams.err();
   }
+  SetCommandProgress({});
+  if (raised) throw *raised;
   return py::make_tuple(code, out, err);
 }
 
@@ -237,8 +262,9 @@ PYBIND11_MODULE(_thinslab, m) {
   m.doc() = "thinslab C++ bindings; use the `thinslab` package.";
   m.attr("__version__") = THINSLAB_VERSION_STRING;
   m.attr("git_hash") = THINSLAB_GIT_HASH;
-  m.def("run_command", &RunCommand, py::arg("args"),
-        "Runs a thinslab command in-process; returns (exit_code, stdout, stderr).");
+  m.def("run_command", &RunCommand, py::arg("args"), py::arg("progress") = py::none(),
+        "Runs a thinslab command in-process; returns (exit_code, stdout, stderr). progress(dict) is called "
+        "with stage, done, total, elapsed_s, eta_s; returning False cancels.");
   m.def("read_exr", &ReadExrArrays, py::arg("path"), "({channel: float32 (h, w) array}, {attribute: str})");
   m.def("read_capture", &ReadCaptureDict, py::arg("path"), py::arg("allow_incomplete") = false,
         "The validated capture manifest as a dict.");

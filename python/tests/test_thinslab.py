@@ -137,3 +137,21 @@ def test_tutorial_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     runpy.run_path(os.path.join(SOURCE_DIR, "python", "examples", "tutorial.py"), run_name="__main__")
     assert (tmp_path / "tutorial_tau.png").stat().st_size > 10000
+
+
+def test_progress_reports_and_cancels(shadow_capture, tmp_path):
+    updates = []
+    fit = thinslab.fit_tau(shadow_capture, out=str(tmp_path / "reported"), split_half_check=False,
+                           progress=lambda u: updates.append(u) or True)
+    assert fit.summary["result"] == "success"
+    assert updates and all(u["stage"].startswith("fit tau") for u in updates)
+    assert updates[-1]["done"] == updates[-1]["total"] > 0
+    with pytest.raises(thinslab.ThinslabError, match="cancelled"):
+        thinslab.fit_tau(shadow_capture, out=str(tmp_path / "cancelled"), progress=lambda u: False)
+    assert not os.path.exists(tmp_path / "cancelled")
+
+    def failing(update):
+        raise KeyError("from the callback")
+    with pytest.raises(KeyError, match="from the callback"):
+        thinslab.fit_tau(shadow_capture, out=str(tmp_path / "raised"), progress=failing)
+    assert not os.path.exists(tmp_path / "raised")

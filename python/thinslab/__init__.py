@@ -47,17 +47,21 @@ def _option_args(options):
     return args
 
 
-def run(*args, **options):
+def run(*args, progress=None, _stacklevel=2, **options):
     """Runs ``thinslab ARGS --OPTIONS`` in-process; returns its standard output.
 
-    Warnings the command prints are issued as Python warnings; a failure raises ThinslabError.
+    ``progress``, if given, is called with a dict (stage, done, total, elapsed_s, eta_s) as long
+    operations advance (tau's scattered-light iterations, the dot frames and point fits of fit
+    dmf); returning False cancels the command, which then raises ThinslabError ("... cancelled")
+    and writes nothing. Warnings the command prints are issued as Python warnings; a failure
+    raises ThinslabError.
     """
     command = [str(a) for a in args] + _option_args(options)
-    code, out, err = _thinslab.run_command(command)
+    code, out, err = _thinslab.run_command(command, progress)
     errors = []
     for line in err.splitlines():
         if line.startswith("warning: "):
-            warnings.warn(line[len("warning: "):], stacklevel=3)
+            warnings.warn(line[len("warning: "):], stacklevel=_stacklevel + 1)
         elif line.strip():
             errors.append(line[len("error: "):] if line.startswith("error: ") else line)
     if code != 0:
@@ -112,39 +116,39 @@ def read_fit(out_dir):
     return FitResult(out_dir)
 
 
-def _fit(kind, capture, out, options):
+def _fit(kind, capture, out, progress, options):
     out_dir = out or os.path.join(capture, "fit", kind)
-    log = run("fit", kind, capture, out=out, **options)
+    log = run("fit", kind, capture, out=out, progress=progress, _stacklevel=4, **options)
     return FitResult(out_dir, log)
 
 
-def fit_tau(capture, out=None, **options):
+def fit_tau(capture, out=None, progress=None, **options):
     """``thinslab fit tau``: optical thickness map (Gu et al. 2007, Eqs. 5-7). Returns a FitResult."""
-    return _fit("tau", capture, out, options)
+    return _fit("tau", capture, out, progress, options)
 
 
-def fit_phase(capture, out=None, **options):
+def fit_phase(capture, out=None, progress=None, **options):
     """``thinslab fit phase``: Henyey-Greenstein g from the laser lobe (Gu et al. 2007, Eq. 8)."""
-    return _fit("phase", capture, out, options)
+    return _fit("phase", capture, out, progress, options)
 
 
-def fit_dmf(capture, out=None, **options):
+def fit_dmf(capture, out=None, progress=None, **options):
     """``thinslab fit dmf``: dual-microfacet maps from a dot scan (Dai et al. 2009)."""
-    return _fit("dmf", capture, out, options)
+    return _fit("dmf", capture, out, progress, options)
 
 
 def predict(capture, fit=None, out=None, **options):
     """``thinslab predict``: what a fit predicts for a capture; returns summary.json as a dict."""
     out_dir = out or os.path.join(capture, "fit", "predict")
-    run("predict", capture, fit=fit, out=out, **options)
+    run("predict", capture, fit=fit, out=out, _stacklevel=3, **options)
     return read_json(os.path.join(out_dir, "summary.json"))
 
 
 def calib(kind, capture, **options):
     """``thinslab calib KIND CAPTURE``: response, hdr, flat, pose, dots, gamma. Returns the log."""
-    return run("calib", kind, capture, **options)
+    return run("calib", kind, capture, _stacklevel=3, **options)
 
 
 def sim(kind, out, **options):
     """``thinslab sim KIND OUT``: shadow-maps, laser or dot-scan simulated captures."""
-    return run("sim", kind, out, **options)
+    return run("sim", kind, out, _stacklevel=3, **options)

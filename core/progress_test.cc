@@ -1,0 +1,78 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "thinslab/core/progress.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+#include <vector>
+
+#include "thinslab/core/parallel.h"
+
+namespace thinslab {
+namespace {
+
+TEST(Progress, ParallelForReportsOnTheCallingThreadUpToTheTotal) {
+  const std::thread::id caller = std::this_thread::get_id();
+  std::vector<ProgressUpdate> updates;
+  bool off_thread = false;
+  const ProgressCallback callback = [&](const ProgressUpdate& u) {
+    off_thread |= std::this_thread::get_id() != caller;
+    updates.push_back(u);
+    return true;
+  };
+  ProgressTracker tracker(callback, "items", 200, 0.0);
+  std::atomic<int> ran{0};
+  EXPECT_TRUE(ParallelFor(200, 4, [&](int) { ++ran; }, &tracker));
+  EXPECT_EQ(ran, 200);
+  EXPECT_FALSE(off_thread);
+  ASSERT_FALSE(updates.empty());
+  EXPECT_EQ(updates.back().done, 200);
+  EXPECT_EQ(updates.back().total, 200);
+  EXPECT_EQ(updates.back().stage, "items");
+  for (size_t k = 1; k < updates.size(); ++k) EXPECT_GE(updates[k].done, updates[k - 1].done);
+}
+
+TEST(Progress, CancellingStopsTheLoopEarly) {
+  int calls = 0;
+  const ProgressCallback callback = [&](const ProgressUpdate& u) {
+    ++calls;
+    return u.done < 5;
+  };
+  ProgressTracker tracker(callback, "items", 100000, 0.0);
+  std::atomic<int> ran{0};
+  EXPECT_FALSE(ParallelFor(100000, 2, [&](int) { ++ran; }, &tracker));
+  EXPECT_TRUE(tracker.cancelled());
+  EXPECT_LT(ran, 100000);
+  EXPECT_FALSE(tracker.Report(6));  // Sticky.
+  const int after = calls;
+  tracker.Report(7);
+  EXPECT_EQ(calls, after);  // No callback once cancelled.
+}
+
+TEST(Progress, EtaFromTheRateAndRateLimitedCalls) {
+  std::vector<ProgressUpdate> updates;
+  const ProgressCallback callback = [&](const ProgressUpdate& u) {
+    updates.push_back(u);
+    return true;
+  };
+  ProgressTracker tracker(callback, "slow", 10, 3600.0);
+  for (int k = 0; k <= 10; ++k) tracker.Report(k);
+  // First and last only: the interval is an hour.
+  ASSERT_EQ(updates.size(), 2u);
+  EXPECT_EQ(updates.front().done, 0);
+  EXPECT_EQ(updates.front().eta_s, -1);
+  EXPECT_EQ(updates.back().done, 10);
+  EXPECT_EQ(updates.back().eta_s, 0);
+}
+
+TEST(Progress, NoCallbackNeverCancels) {
+  const ProgressCallback none;
+  ProgressTracker tracker(none, "quiet", 3);
+  std::atomic<int> ran{0};
+  EXPECT_TRUE(ParallelFor(3, 2, [&](int) { ++ran; }, &tracker));
+  EXPECT_EQ(ran, 3);
+}
+
+}  // namespace
+}  // namespace thinslab
