@@ -33,6 +33,13 @@ if grep -iE "aravis|sdl2|libusb|umockdev|benchmark" build-refit/build.ninja | gr
   exit 1
 fi
 cmake --build build-refit -j"$jobs" --target thinslab thinslab_refit_tests
+for binary in build-refit/app/thinslab build-refit/python/thinslab/_thinslab*.so; do
+  [ -e "$binary" ] || continue
+  if ldd "$binary" | grep -iE "aravis|SDL2|libusb|umockdev"; then
+    echo "thinslab: $binary of the refit-only tree links a device library" >&2
+    exit 1
+  fi
+done
 (cd build-refit && ctest --output-on-failure -j"$jobs" -L refit)
 bash scripts/test_install.sh build-refit
 

@@ -3,7 +3,8 @@
 # thinslab as an installed library (issue #25): installs BUILD_DIR into a fresh prefix, checks the
 # installed CLI finds its data relative to itself, makes a small capture with it, builds the
 # downstream project examples/refit against the prefix (find_package(thinslab), thinslab::refit)
-# and checks that its fit through the API equals the installed CLI's `fit tau` of the same capture.
+# and checks that its fit through the API, and the installed Python package's (when built), equal
+# the installed CLI's `fit tau` of the same capture.
 # Usage: scripts/test_install.sh BUILD_DIR. Called by scripts/test.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -51,9 +52,11 @@ if [ -d "$prefix"/lib/python3*/dist-packages/thinslab ]; then
   (cd "$work" && PYTHONPATH="$site" "${python:-python3}" -c "
 import os, thinslab
 assert os.environ['THINSLAB_DATA_DIR'] == '$prefix/share/thinslab/data', os.environ.get('THINSLAB_DATA_DIR')
-fit = thinslab.read_fit('$work/api_fit')
+fit = thinslab.fit_tau('$work/capture', out='$work/python_fit')
 assert fit.summary['result'] == 'success' and fit.maps['tau'].shape == tuple(fit.summary['grid'][::-1])
 print('python', thinslab.__version__, 'from', thinslab.__file__)") > "$work/python.log" 2>&1 ||
     { cat "$work/python.log"; fail "the installed Python package does not work"; }
+  cmp -s "$work/python_fit/comparison.json" "$work/cli_fit/comparison.json" ||
+    fail "the Python fit and the CLI fit differ"
 fi
 echo "test_install: $build installed, examples/refit built against it, API fit = CLI fit"
