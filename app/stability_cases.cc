@@ -89,10 +89,10 @@ Status RunTauStabilityCase(const TauStabilityCase& test_case, const std::string&
       result->consistency_rms_z = summary["consistency"]["rms_z"].get<double>();
     }
   }
-  const int tau_c = maps.ChannelIndex("tau"), plain_c = maps.ChannelIndex("tau_plain"),
+  const int tau_c = maps.ChannelIndex("tau"), plain_c = maps.ChannelIndex("tau_eq7"),
             status_c = maps.ChannelIndex("status"), sigma_c = maps.ChannelIndex("sigma_tau");
   if (tau_c < 0 || plain_c < 0 || status_c < 0 || sigma_c < 0) {
-    return Status::Error(fit_dir + "/tau.exr: expected channels tau, tau_plain, status, sigma_tau");
+    return Status::Error(fit_dir + "/tau.exr: expected channels tau, tau_eq7, status, sigma_tau");
   }
   const Image& truth = test_case.tau_true;
   if (maps.width() != truth.width() || maps.height() != truth.height()) {

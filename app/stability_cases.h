@@ -46,7 +46,7 @@ struct TauStabilityResult {
   int64_t invalid_status = 0;       // Status values that are not a TauPixelStatus code.
   // Over status-ok pixels: error of the "tau" channel against ground truth.
   double rms_abs_error = 0, mean_error = 0, max_abs_error = 0, rms_true = 0;
-  double rms_abs_error_plain = 0;   // Same for "tau_plain" (Gu Eq. 7).
+  double rms_abs_error_plain = 0;   // Same for "tau_eq7" (Gu Eq. 7).
   double rms_sigma_tau = 0;         // RMS of the fit's own sigma_tau over the same pixels.
   // RMS error against the truth moved by the board shift the pose error causes (ok pixels at
   // least 2 texels inside the grid): what is left once the map is put back in place.

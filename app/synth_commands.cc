@@ -238,18 +238,15 @@ int RunLayer(int argc, char** argv) {
     const std::string ini = parser.ToIni();
     StagedDirectory out(out_dir, "synth layer", {{library, {}}, {spec_path, {}}, {background_path, {}}});
     status = out.Init();
-    layer.attributes()["format_version"] = "1.0";
-    layer.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
-    layer.attributes()["git_hash"] = THINSLAB_GIT_HASH;
-    layer.attributes()["options_digest"] = "fnv1a64:" + Digest(ini);
-    layer.attributes()["pixel_pitch_m"] = nlohmann::json(summary.pixel_pitch_m).dump();
+    layer.numeric_attributes()["pixel_pitch_m"] = {summary.pixel_pitch_m};
     layer.attributes()["seed"] = std::to_string(options.seed);
     layer.attributes()["model"] = "gu2007_sec5.3_synthesis";
     std::string names;
     for (const auto& l : options.layers) names += (names.empty() ? "" : ",") + l.prototype;
     layer.attributes()["prototypes"] = names;
     layer.attributes()["source_library"] = library;
-    if (status.ok()) status = WriteExr(JoinPath(out.path(), "layer.exr"), layer);
+    const Provenance provenance{"synth layer", library, "", ini};
+    if (status.ok()) status = WriteMapExr(JoinPath(out.path(), "layer.exr"), layer, {"tau", {}}, provenance);
     if (status.ok()) status = WriteLayerFalseColor(JoinPath(out.path(), "layer_preview.png"), layer);
     if (status.ok() && preview) {
       PanePreviewOptions preview_options;
@@ -257,7 +254,11 @@ int RunLayer(int argc, char** argv) {
       status = WritePanePreview(JoinPath(out.path(), "pane_preview.png"), layer, background, preview_options, &panels);
       if (status.ok()) status = WriteFileAtomically(JoinPath(out.path(), "pane_preview.json"), PanelsJson(panels));
     }
-    if (status.ok()) status = WriteFileAtomically(JoinPath(out.path(), "summary.json"), summary.ToJson());
+    if (status.ok()) {
+      nlohmann::ordered_json summary_json = nlohmann::ordered_json::parse(summary.ToJson());
+      summary_json["provenance"] = ProvenanceJson(provenance);
+      status = WriteFileAtomically(JoinPath(out.path(), "summary.json"), summary_json.dump(2) + "\n");
+    }
     if (status.ok()) status = WriteFileAtomically(JoinPath(out.path(), "options.ini"), ini);
     if (status.ok()) status = out.Commit();
   }

@@ -28,7 +28,13 @@ Image Image::Channel(int c) const {
     for (int x = 0; x < width_; ++x) out.at(x, y) = at(x, y, c);
   }
   out.attributes_ = attributes_;
+  out.numeric_attributes_ = numeric_attributes_;
   return out;
+}
+
+const std::vector<double>* Image::NumericAttribute(const std::string& key, size_t count) const {
+  const auto it = numeric_attributes_.find(key);
+  return it != numeric_attributes_.end() && it->second.size() == count ? &it->second : nullptr;
 }
 
 float Image::Bilinear(double x, double y, int c) const {

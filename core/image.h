@@ -47,6 +47,13 @@ class Image {
   // Free-form string attributes written to / read from the EXR header.
   std::map<std::string, std::string>& attributes() { return attributes_; }
   const std::map<std::string, std::string>& attributes() const { return attributes_; }
+  // Numeric header attributes, stored with OpenEXR's typed attributes so that other tools read
+  // numbers, not text: 1 value as double, 2 as V2d, 3 as V3d, 16 as M44d (row-major), any other
+  // count as a float vector (core/exr_io.h).
+  std::map<std::string, std::vector<double>>& numeric_attributes() { return numeric_attributes_; }
+  const std::map<std::string, std::vector<double>>& numeric_attributes() const { return numeric_attributes_; }
+  // The numeric attribute `key` with exactly `count` values, or nullptr.
+  const std::vector<double>* NumericAttribute(const std::string& key, size_t count) const;
 
  private:
   int width_ = 0;
@@ -54,6 +61,7 @@ class Image {
   std::vector<std::string> channel_names_;
   std::vector<float> data_;
   std::map<std::string, std::string> attributes_;
+  std::map<std::string, std::vector<double>> numeric_attributes_;
 };
 
 // Stacks single-channel images of equal size as the channels of one image.

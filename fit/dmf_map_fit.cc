@@ -144,7 +144,7 @@ bool DmfMapFitOptions::Check(std::string* error) const {
 }
 
 Image DmfMaps::ToImage() const {
-  Image image(width, height, {"alpha", "smith_alpha", "k_s", "rho_d", "residual", "status", "measured_ndf_fraction",
+  Image image(width, height, {"top_face_weight", "smith_alpha", "k_s", "rho_d", "log_rms_residual", "status", "measured_ndf_fraction",
                               "transmittance"});
   for (int p = 0; p < width * height; ++p) {
     const DmfPointFit& f = fits[p];

@@ -16,11 +16,18 @@ namespace thinslab {
 
 namespace {
 
-Status Attribute(const Image& image, const std::string& file, const std::string& key, nlohmann::json* value) {
-  const auto it = image.attributes().find(key);
-  if (it == image.attributes().end()) return Status::Error(file + ": attribute '" + key + "' is missing");
-  *value = nlohmann::json::parse(it->second, nullptr, false);
-  if (value->is_discarded()) return Status::Error(file + ": attribute '" + key + "' is not JSON: " + it->second);
+// A numeric header attribute of `count` values (core/exr_io.h reads format 1.0's JSON text too).
+Status NumericAttribute(const Image& image, const std::string& file, const std::string& key, size_t count,
+                        std::vector<double>* values) {
+  const std::vector<double>* found = image.NumericAttribute(key, count);
+  if (found == nullptr) {
+    return Status::Error(file + ": numeric attribute '" + key + "' with " + std::to_string(count) +
+                         " value(s) is missing (fitted before `thinslab predict` existed? fit again)");
+  }
+  for (double v : *found) {
+    if (!std::isfinite(v)) return Status::Error(file + ": attribute '" + key + "' is not finite");
+  }
+  *values = *found;
   return Status::Ok();
 }
 
@@ -84,20 +91,16 @@ Status ReadDmfFit(const std::string& fit_dir, DmfFitOnDisk* fit) {
 
   Image maps;
   THINSLAB_RETURN_IF_ERROR(ReadExr(maps_file, &maps));
-  nlohmann::json grid_min, pitch, eta;
-  THINSLAB_RETURN_IF_ERROR(Attribute(maps, maps_file, "grid_min_m", &grid_min));
-  THINSLAB_RETURN_IF_ERROR(Attribute(maps, maps_file, "pixel_pitch_m", &pitch));
-  THINSLAB_RETURN_IF_ERROR(Attribute(maps, maps_file, "eta", &eta));
-  if (!grid_min.is_array() || grid_min.size() != 2) return Status::Error(maps_file + ": grid_min_m must be [x, y]");
-  double gx, gy;
-  THINSLAB_RETURN_IF_ERROR(Number(grid_min[0], maps_file, "grid_min_m", &gx));
-  THINSLAB_RETURN_IF_ERROR(Number(grid_min[1], maps_file, "grid_min_m", &gy));
-  fit->grid_min_m = Eigen::Vector2d(gx, gy);
-  THINSLAB_RETURN_IF_ERROR(Number(pitch, maps_file, "pixel_pitch_m", &fit->pitch_m));
-  THINSLAB_RETURN_IF_ERROR(Number(eta, maps_file, "eta", &fit->maps.eta));
+  std::vector<double> grid_min, pitch, eta;
+  THINSLAB_RETURN_IF_ERROR(NumericAttribute(maps, maps_file, "grid_min_m", 2, &grid_min));
+  THINSLAB_RETURN_IF_ERROR(NumericAttribute(maps, maps_file, "pixel_pitch_m", 1, &pitch));
+  THINSLAB_RETURN_IF_ERROR(NumericAttribute(maps, maps_file, "eta", 1, &eta));
+  fit->grid_min_m = Eigen::Vector2d(grid_min[0], grid_min[1]);
+  fit->pitch_m = pitch[0];
+  fit->maps.eta = eta[0];
   if (!(fit->pitch_m > 0) || !(fit->maps.eta > 1)) return Status::Error(maps_file + ": needs pixel_pitch_m > 0, eta > 1");
   int c_alpha, c_smith, c_k_s, c_rho_d, c_status;
-  THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "alpha", &c_alpha));
+  THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "top_face_weight", &c_alpha));
   THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "smith_alpha", &c_smith));
   THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "k_s", &c_k_s));
   THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "rho_d", &c_rho_d));
@@ -105,16 +108,16 @@ Status ReadDmfFit(const std::string& fit_dir, DmfFitOnDisk* fit) {
 
   Image atlas;
   THINSLAB_RETURN_IF_ERROR(ReadExr(atlas_file, &atlas));
-  nlohmann::json resolution, stride;
-  THINSLAB_RETURN_IF_ERROR(Attribute(atlas, atlas_file, "ndf_resolution", &resolution));
-  THINSLAB_RETURN_IF_ERROR(Attribute(atlas, atlas_file, "atlas_stride", &stride));
+  std::vector<double> resolution, stride;
+  THINSLAB_RETURN_IF_ERROR(NumericAttribute(atlas, atlas_file, "ndf_resolution", 1, &resolution));
+  THINSLAB_RETURN_IF_ERROR(NumericAttribute(atlas, atlas_file, "atlas_stride", 1, &stride));
   int c_d;
   THINSLAB_RETURN_IF_ERROR(Channel(atlas, atlas_file, "D", &c_d));
-  if (!resolution.is_number_integer() || !stride.is_number_integer() || resolution.get<int>() < 2 ||
-      stride.get<int>() < 1) {
+  if (resolution[0] != std::floor(resolution[0]) || stride[0] != std::floor(stride[0]) || resolution[0] < 2 ||
+      resolution[0] > 4096 || stride[0] < 1 || stride[0] > 65536) {
     return Status::Error(atlas_file + ": ndf_resolution and atlas_stride must be integers >= 2 and >= 1");
   }
-  const int n = resolution.get<int>(), s = stride.get<int>();
+  const int n = static_cast<int>(resolution[0]), s = static_cast<int>(stride[0]);
   const int tiles_x = (maps.width() + s - 1) / s, tiles_y = (maps.height() + s - 1) / s;
   if (atlas.width() != tiles_x * n || atlas.height() != tiles_y * n) {
     return Status::Error(atlas_file + ": " + std::to_string(atlas.width()) + "x" + std::to_string(atlas.height()) +

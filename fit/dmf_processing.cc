@@ -306,6 +306,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   const double step_x = nx > 1 ? (*xs.rbegin() - *xs.begin()) / (nx - 1) : 1;
   const double step_y = ny > 1 ? (*ys.rbegin() - *ys.begin()) / (ny - 1) : 1;
   slices->dot_cell_area_m2 = step_x * step_y * Sqr(monitor.pixel_pitch_m);
+  report->cam_from_sample = camera.cam_from_sample;
   const Eigen::Matrix3d r = camera.cam_from_sample.rotation.toRotationMatrix();
   slices->camera_centre = -r.transpose() * camera.cam_from_sample.translation;
   // The slab's thickness moves where each dot's light enters (DmfSliceSet::LightEntryPoint).

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "thinslab/calib/dot_geometry.h"
+#include "thinslab/core/rigid3.h"
 #include "thinslab/core/progress.h"
 #include "thinslab/calib/exposure_check.h"
 #include "thinslab/calib/frame_noise.h"
@@ -61,6 +62,7 @@ struct DmfProcessingOptions {
 
 struct DmfProcessingReport {
   int num_dots = 0, grid_nx = 0, grid_ny = 0, num_frames = 0, num_exposures = 0;
+  Rigid3d cam_from_sample;  // The camera pose the slices were rectified with.
   double dot_rms_residual_m = 0;
   // The grid-scale check of the monitor distance (DotGeometryResult): the distance error that
   // remains, its statistical sigma, the correction applied (dot_geometry.refine_distance or

@@ -106,9 +106,9 @@ SplitHalfConsistency CompareSplitHalves(const Image& tau_a, const Image& noise_a
 
 Status CompareTauWithTruth(const Image& maps, const Image& truth, double min_tau, double max_tau,
                            TauComparison* comparison) {
-  const int tau = maps.ChannelIndex("tau"), plain = maps.ChannelIndex("tau_plain");
+  const int tau = maps.ChannelIndex("tau"), plain = maps.ChannelIndex("tau_eq7");
   if (tau < 0 || plain < 0 || maps.ChannelIndex("status") < 0) {
-    return Status::Error("tau map lacks one of the channels tau, tau_plain, status");
+    return Status::Error("tau map lacks one of the channels tau, tau_eq7, status");
   }
   const int truth_channel = truth.ChannelIndex("tau");
   if (truth_channel < 0) return Status::Error("ground truth lacks channel 'tau'");

@@ -23,7 +23,7 @@ struct TauAccuracy {
 
 struct TauComparison {
   TauAccuracy refined;  // Channel "tau".
-  TauAccuracy plain;    // Channel "tau_plain" (Gu Eq. 7).
+  TauAccuracy plain;    // Channel "tau_eq7" (Gu Eq. 7).
   double min_tau = 0, max_tau = 0;
   std::string ToJson() const;
 };
@@ -43,7 +43,7 @@ struct SplitHalfConsistency {
 SplitHalfConsistency CompareSplitHalves(const Image& tau_a, const Image& noise_a, const Image& tau_b,
                                         const Image& noise_b);
 
-// `maps` holds channels tau, tau_plain, status; `truth` channel "tau" on the same grid.
+// `maps` holds channels tau, tau_eq7, status; `truth` channel "tau" on the same grid.
 Status CompareTauWithTruth(const Image& maps, const Image& truth, double min_tau, double max_tau,
                            TauComparison* comparison);
 

@@ -507,7 +507,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   }
 
   // Outputs, counts and residuals.
-  maps->tau = Image(w, h, {"tau", "tau_plain", "status", "sigma_tau"});
+  maps->tau = Image(w, h, {"tau", "tau_eq7", "status", "sigma_tau"});
   maps->sigma_tau_noise = Image(w, h);
   maps->reference = reference;
   double sum_scatter = 0;

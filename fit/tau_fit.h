@@ -77,7 +77,7 @@ struct TauFitOptions {
 };
 
 struct TauMaps {
-  Image tau;        // Channels: tau, tau_plain, status, sigma_tau.
+  Image tau;        // Channels: tau, tau_eq7 (Gu Eq. 7 alone), status, sigma_tau.
   // The frames' noise part of sigma_tau alone (the split-half check compares it).
   Image sigma_tau_noise;
   // I_clean the map was fitted with (DN/us, rectified): the reference frames, or the clean

@@ -274,19 +274,17 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   if (has_truth) THINSLAB_RETURN_IF_ERROR(ReadDmfTruth(session_dir, &truth));
 
   const auto write_start = std::chrono::steady_clock::now();
+  const Provenance provenance{"fit dmf", session_dir, "", run.options_ini};
   Image image = maps.ToImage();
-  image.attributes()["format_version"] = "1.0";
-  image.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
-  image.attributes()["git_hash"] = THINSLAB_GIT_HASH;
-  image.attributes()["source_session"] = session_dir;
   image.attributes()["model"] = "dai2009_dual_microfacet";
-  image.attributes()["grid_min_m"] = nlohmann::json({slices.grid_min_m.x(), slices.grid_min_m.y()}).dump();
-  image.attributes()["pixel_pitch_m"] = nlohmann::json(slices.pitch_m).dump();
-  image.attributes()["eta"] = nlohmann::json(run.fit.point.eta).dump();
+  image.numeric_attributes()["grid_min_m"] = {slices.grid_min_m.x(), slices.grid_min_m.y()};
+  image.numeric_attributes()["pixel_pitch_m"] = {slices.pitch_m};
+  image.numeric_attributes()["eta"] = {run.fit.point.eta};
+  SetWorldToCamera(processing.cam_from_sample, &image);
   // Which model each point's maps hold: rung 5 (tabulated) unless the ladder replaced it
   // (ladder.exr channel rung).
   image.attributes()["ladder_applied"] = run.ladder && run.ladder_apply ? "true" : "false";
-  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "maps.exr"), image));
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), "maps.exr"), image, {"smith_alpha", {"status"}}, provenance));
 
   // NDF atlas: tiles in the orthographic projection of optics/dual_microfacet_btdf.h.
   const int n = maps.ndf_resolution;
@@ -300,13 +298,14 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
       for (int cell = 0; cell < n * n; ++cell) atlas.at(tx * n + cell % n, ty * n + cell / n) = std::exp(f.log_ndf[cell]);
     }
   }
-  atlas.attributes()["ndf_resolution"] = std::to_string(n);
-  atlas.attributes()["atlas_stride"] = std::to_string(stride);
+  atlas.numeric_attributes()["ndf_resolution"] = {static_cast<double>(n)};
+  atlas.numeric_attributes()["atlas_stride"] = {static_cast<double>(stride)};
   atlas.attributes()["projection"] = "orthographic: cell (row, col) at h = (-1 + (col + 0.5) 2/N, -1 + (row + 0.5) 2/N), optical frame";
-  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "ndf_atlas.exr"), atlas));
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), "ndf_atlas.exr"), atlas, {"D", {}}, provenance));
   if (run.ladder) {
     ladder.image.attributes() = image.attributes();
-    THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "ladder.exr"), ladder.image));
+    ladder.image.numeric_attributes() = image.numeric_attributes();
+    THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), "ladder.exr"), ladder.image, {"rung", {}}, provenance));
     Image undecided(maps.width, maps.height);
     for (int p = 0; p < maps.width * maps.height; ++p) undecided.data()[p] = ladder.image.data()[p * 5] < 0 ? 1.f : 0.f;
     FalseColorOptions color;
@@ -326,8 +325,8 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     const char* name;
     int channel;
     double max;
-  } pictures[] = {{"alpha", 0, 1},    {"smith_alpha", 1, 1}, {"k_s", 2, 1.5},
-                  {"rho_d", 3, 0.2},  {"residual", 4, 1},    {"measured_ndf_fraction", 6, 1}};
+  } pictures[] = {{"top_face_weight", 0, 1}, {"smith_alpha", 1, 1},      {"k_s", 2, 1.5},
+                  {"rho_d", 3, 0.2},          {"log_rms_residual", 4, 1}, {"measured_ndf_fraction", 6, 1}};
   for (const auto& pic : pictures) {
     FalseColorOptions color;
     color.label = pic.name;
@@ -394,6 +393,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - write_start).count();
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
+  j["provenance"] = ProvenanceJson(provenance);
   j["model"] = "dai2009_dual_microfacet";
   j["session"] = session_dir;
   j["grid"] = {maps.width, maps.height};

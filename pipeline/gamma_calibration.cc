@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "thinslab/core/provenance.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/output_guard.h"
 #include "thinslab/core/session_io.h"
@@ -49,6 +50,7 @@ Status CalibrateDisplayGamma(const CalibGammaRun& run, std::ostream& log) {
   nlohmann::ordered_json j;
   j["format"] = "thinslab-display-gamma-summary";
   j["format_version"] = "1.0";
+  j["provenance"] = ProvenanceJson({"calib gamma", session_dir, "", run.options_ini});
   j["thinslab_version"] = THINSLAB_VERSION_STRING;
   j["git_hash"] = THINSLAB_GIT_HASH;
   j["session"] = session_dir;

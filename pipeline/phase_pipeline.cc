@@ -10,6 +10,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "thinslab/core/provenance.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/math.h"
@@ -81,10 +82,12 @@ Status WriteLobePlot(const std::string& path, const std::vector<LaserRing>& ring
 }
 
 std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images, const CaptureCompleteness& capture,
-                        const nlohmann::json& truth, const nlohmann::json& validation) {
+                        const nlohmann::json& truth, const nlohmann::json& validation,
+                        const Provenance& provenance) {
   const SessionCalibration& calibration = images.calibration;
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
+  j["provenance"] = ProvenanceJson(provenance);
   j["format_version"] = "1.0";
   j["model"] = "gu2007_eq8";
   j["result"] = s.ResultName();
@@ -214,7 +217,7 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
     truth = nlohmann::json::parse(text, nullptr, false);
     if (truth.is_discarded()) return Status::Error(truth_path + ": not valid JSON");
   }
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images, capture, truth, validation)));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images, capture, truth, validation, {"fit phase", session_dir, "", options_ini})));
   THINSLAB_RETURN_IF_ERROR(
       WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport() + validation_text));
   if (!validation_text.empty()) std::cout << validation_text;

@@ -115,6 +115,9 @@ Status PredictCapture(const PredictCaptureRun& run, std::ostream& log) {
 
   FrameNoiseModel noise;
   THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(session_dir, session, camera, &noise));
+  std::ostringstream dots_option;
+  for (const Eigen::Vector2d& d : dots) dots_option << (dots_option.tellp() > 0 ? ";" : "") << d.x() << "," << d.y();
+  const Provenance provenance{"predict", session_dir, fit_dir, "dots = " + dots_option.str() + "\n"};
   nlohmann::json entries = nlohmann::json::array();
   std::ostringstream txt;
   txt << "thinslab predict: " << dots.size() << " dots from " << fit_dir << " (NDF atlas stride " << fit.atlas_stride
@@ -162,15 +165,14 @@ Status PredictCapture(const PredictCaptureRun& run, std::ostream& log) {
                     dots[k].y());
     }
     txt << line;
-    image.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
-    image.attributes()["source_session"] = session_dir;
-    image.attributes()["source_fit"] = fit_dir;
     image.attributes()["units"] = "DN/us, black level and darks removed (the HDR merge's radiance)";
-    THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), entry["file"].get<std::string>()), image));
+    THINSLAB_RETURN_IF_ERROR(
+        WriteMapExr(JoinPath(out.path(), entry["file"].get<std::string>()), image, {"predicted", {"valid"}}, provenance));
     entries.push_back(entry);
   }
   nlohmann::json j;
   j["format"] = "thinslab-predict-summary";
+  j["provenance"] = ProvenanceJson(provenance);
   j["kind"] = "dots";
   j["session"] = session_dir;
   j["fit"] = fit_dir;

@@ -33,23 +33,31 @@ Status NumberField(const nlohmann::json& j, const std::string& path, const std::
 
 // The fit's grid from tau.exr's header attributes (docs/format.md 9.2).
 Status TauGrid(const Image& tau, const std::string& path, Eigen::Vector2d* region_min_m, double* pitch_m) {
-  const auto& a = tau.attributes();
-  const auto min_it = a.find("region_min_m"), pitch_it = a.find("pixel_pitch_m");
-  if (min_it == a.end() || pitch_it == a.end()) return Status::Error(path + ": region_min_m or pixel_pitch_m attribute missing");
-  const nlohmann::json min = nlohmann::json::parse(min_it->second, nullptr, false);
-  const nlohmann::json pitch = nlohmann::json::parse(pitch_it->second, nullptr, false);
-  if (!min.is_array() || min.size() != 2 || !min[0].is_number() || !min[1].is_number() || !pitch.is_number()) {
-    return Status::Error(path + ": region_min_m must be [x, y] and pixel_pitch_m a number");
+  const std::vector<double>* min = tau.NumericAttribute("region_min_m", 2);
+  const std::vector<double>* pitch = tau.NumericAttribute("pixel_pitch_m", 1);
+  if (min == nullptr || pitch == nullptr) {
+    return Status::Error(path + ": numeric attributes region_min_m [x, y] and pixel_pitch_m missing");
   }
-  *region_min_m = Eigen::Vector2d(min[0].get<double>(), min[1].get<double>());
-  *pitch_m = pitch.get<double>();
+  *region_min_m = Eigen::Vector2d((*min)[0], (*min)[1]);
+  *pitch_m = (*pitch)[0];
+  if (!region_min_m->allFinite() || !(*pitch_m > 0)) {
+    return Status::Error(path + ": region_min_m must be finite and pixel_pitch_m > 0");
+  }
   return Status::Ok();
 }
 
+// Predict has no options but its inputs: the provenance names the capture and the fit.
+Provenance PredictProvenance(const PredictRun& run) { return {"predict", run.session_dir, run.fit_dir, ""}; }
+
 // The fields every predict summary.json starts with.
 nlohmann::json PredictSummaryHead(const PredictRun& run, const std::string& kind, bool validation, int frames) {
-  return {{"format", "thinslab-predict-summary"}, {"kind", kind},       {"session", run.session_dir},
-          {"fit", run.fit_dir}, {"measured_frames", validation ? "validation" : "fitted"}, {"frames", frames}};
+  return {{"format", "thinslab-predict-summary"},
+          {"provenance", ProvenanceJson(PredictProvenance(run))},
+          {"kind", kind},
+          {"session", run.session_dir},
+          {"fit", run.fit_dir},
+          {"measured_frames", validation ? "validation" : "fitted"},
+          {"frames", frames}};
 }
 
 // The board-grid prediction `board` (CompareShadowWithMaps's image) imaged in the capture's
@@ -68,7 +76,7 @@ std::vector<ShadowPredictionRegion> ImageShadowInCamera(const Image& tau_map, co
   const int n2 = kCameraSubsamples * kCameraSubsamples;
   const std::vector<int> cells = MapPixelOfCameraPixels(data.camera, grid, kCameraSubsamples);
   const int w = data.camera.width_px, h = data.camera.height_px;
-  const int tau_c = tau_map.ChannelIndex("tau"), plain_c = tau_map.ChannelIndex("tau_plain"),
+  const int tau_c = tau_map.ChannelIndex("tau"), plain_c = tau_map.ChannelIndex("tau_eq7"),
             sigma_c = tau_map.ChannelIndex("sigma_tau");
   Image predicted(w, h), plain(w, h), measured = data.camera_shadow, variance(w, h), tau(w, h), sigma_tau(w, h);
   std::vector<uint8_t> valid(static_cast<size_t>(w) * h, 0);
@@ -179,7 +187,7 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
   const std::string tau_path = JoinPath(run.fit_dir, "tau.exr"), summary_path = JoinPath(run.fit_dir, "summary.json");
   Image tau_map;
   THINSLAB_RETURN_IF_ERROR(ReadExr(tau_path, &tau_map));
-  for (const char* channel : {"tau", "tau_plain", "status", "sigma_tau"}) {
+  for (const char* channel : {"tau", "tau_eq7", "status", "sigma_tau"}) {
     if (tau_map.ChannelIndex(channel) < 0) return Status::Error(tau_path + ": channel '" + channel + "' missing");
   }
   nlohmann::json fit_summary;
@@ -232,16 +240,15 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
   Image shadow;
   const std::vector<ShadowPredictionRegion> regions =
       CompareShadowWithMaps(layer, tau_map, data, data.reference, prediction_variance, !validation, &shadow);
-  shadow.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
-  shadow.attributes()["source_session"] = run.session_dir;
-  shadow.attributes()["source_fit"] = run.fit_dir;
   shadow.attributes()["units"] = "DN/us on the board grid of docs/format.md 9.1, black level and darks removed";
-  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out->path(), "shadow.exr"), shadow));
+  THINSLAB_RETURN_IF_ERROR(
+      WriteMapExr(JoinPath(out->path(), "shadow.exr"), shadow, {"predicted", {"valid"}}, PredictProvenance(run)));
   Image camera_shadow;
   const std::vector<ShadowPredictionRegion> camera_regions = ImageShadowInCamera(tau_map, data, shadow, &camera_shadow);
   camera_shadow.attributes() = shadow.attributes();
   camera_shadow.attributes()["units"] = "DN/us in the capture's camera pixels, black level and darks removed";
-  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out->path(), "shadow_camera.exr"), camera_shadow));
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out->path(), "shadow_camera.exr"), camera_shadow,
+                                       {"predicted", {"valid"}}, PredictProvenance(run)));
 
   nlohmann::json j =
       PredictSummaryHead(run, "shadow", validation, validation ? data.num_validation_frames : data.num_shadow_frames);
@@ -306,11 +313,9 @@ Status PredictLobeFromPhase(const PredictRun& run, const Session& session, Stage
   j["lobe_camera"] = {{"pixels", camera.pixels},
                       {"relative_rms", camera.relative_rms},
                       {"noise_relative_rms", camera.noise_relative_rms}};
-  camera_image.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
-  camera_image.attributes()["source_session"] = run.session_dir;
-  camera_image.attributes()["source_fit"] = run.fit_dir;
   camera_image.attributes()["units"] = "DN/us in the capture's camera pixels (the HDR merge's radiance)";
-  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out->path(), "lobe_camera.exr"), camera_image));
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out->path(), "lobe_camera.exr"), camera_image, {"predicted", {"valid"}},
+                                       PredictProvenance(run)));
   std::ostringstream txt;
   txt << "thinslab predict: the lobe Eq. 8 predicts with g " << g << " (fitted at board distance " << fit_distance * 1e3
       << " mm) at " << images.board_distance_m * 1e3 << " mm, against the capture's "

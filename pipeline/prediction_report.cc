@@ -11,7 +11,7 @@ std::vector<ShadowPredictionRegion> CompareShadowWithMaps(const TauFitOptions& l
                                                           const Image& prediction_variance, bool use_fitted_frames,
                                                           Image* predicted_shadow) {
   const Image tau = tau_map.Channel(tau_map.ChannelIndex("tau"));
-  const Image tau_plain = tau_map.Channel(tau_map.ChannelIndex("tau_plain"));
+  const Image tau_plain = tau_map.Channel(tau_map.ChannelIndex("tau_eq7"));
   const Image status = tau_map.Channel(tau_map.ChannelIndex("status"));
   const Image sigma_tau = tau_map.Channel(tau_map.ChannelIndex("sigma_tau"));
   const Image& measured = use_fitted_frames ? data.shadow : data.validation_shadow;

@@ -129,13 +129,6 @@ Status LoadBracket(const std::string& session_dir, const Session& session, const
   return Status::Ok();
 }
 
-void AddProvenance(Image* image, const std::string& session_dir, const std::string& options_ini) {
-  image->attributes()["format_version"] = "1.0";
-  image->attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
-  image->attributes()["git_hash"] = THINSLAB_GIT_HASH;
-  image->attributes()["options_digest"] = "fnv1a64:" + Digest(options_ini);
-  image->attributes()["source_session"] = session_dir;
-}
 
 }  // namespace
 
@@ -280,6 +273,7 @@ Status CalibrateHdr(const CalibHdrRun& run, std::ostream& log) {
   nlohmann::ordered_json summary;
   summary["format"] = "thinslab-hdr-summary";
   summary["format_version"] = "1.0";
+  summary["provenance"] = ProvenanceJson({"calib hdr", session_dir, "", options_ini});
   summary["response"] = have_response ? response.method : "linear";
   summary["weighting"] = weighting;
   summary["camera"] = camera->id;
@@ -296,13 +290,13 @@ Status CalibrateHdr(const CalibHdrRun& run, std::ostream& log) {
     if (!status.ok()) return status.WithContext(group.name);
     const ExposureCheck& check = info.exposure_check;
     Image image = StackChannels({&hdr.radiance, &hdr.variance, &hdr.all_saturated}, {"radiance", "variance", "saturated"});
-    AddProvenance(&image, session_dir, options_ini);
     image.attributes()["camera"] = camera->id;
     image.attributes()["group"] = group.name;
     image.attributes()["response"] = have_response ? response.method : "linear";
     image.attributes()["exposures_us"] = nlohmann::json(info.exposures_us).dump();
-    image.attributes()["dark_frames"] = std::to_string(info.num_darks);
-    status = WriteExr(JoinPath(staged.path(), group.name + ".exr"), image);
+    image.numeric_attributes()["dark_frames"] = {static_cast<double>(info.num_darks)};
+    status = WriteMapExr(JoinPath(staged.path(), group.name + ".exr"), image, {"radiance", {"saturated"}},
+                         {"calib hdr", session_dir, "", options_ini});
     if (!status.ok()) return status;
     summary["groups"].push_back({{"name", group.name},
                                  {"file", group.name + ".exr"},
@@ -357,14 +351,16 @@ Status CalibrateFlatField(const CalibFlatRun& run, std::ostream& log) {
   FlatFieldSummary summary;
   status = ComputeSessionFlatField(session_dir, session, have_response ? &response : nullptr, options, &flat, &summary);
   if (!status.ok()) return status;
-  AddProvenance(&flat, session_dir, "# thinslab calib flat\n" + run.options_ini);
   flat.attributes()["camera"] = session.rig.cameras[0].id;
   flat.attributes()["frame_kind"] = summary.kind;
-  flat.attributes()["median_dn_per_us"] = nlohmann::json(summary.median_dn_per_us).dump();
-  flat.attributes()["smoothing_sigma_px"] = nlohmann::json(options.smoothing_sigma_px).dump();
+  flat.numeric_attributes()["median_dn_per_us"] = {summary.median_dn_per_us};
+  flat.numeric_attributes()["smoothing_sigma_px"] = {options.smoothing_sigma_px};
   flat.attributes()["response"] = have_response ? response.method : "linear";
   status = CreateParentFolder(out);
-  if (status.ok()) status = WriteExr(out, flat);
+  if (status.ok()) {
+    status = WriteMapExr(out, flat, {"flat", {"valid"}},
+                         {"calib flat", session_dir, "", "# thinslab calib flat\n" + run.options_ini});
+  }
   if (!status.ok()) return status;
   log << summary.BriefReport() << "\nwrote " << out << "\n";
   return Status::Ok();

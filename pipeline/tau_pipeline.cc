@@ -22,20 +22,13 @@
 namespace thinslab {
 namespace {
 
-std::string RigidToJson(const Rigid3d& t) {
-  nlohmann::json j;
-  j["rotation_wxyz"] = {t.rotation.w(), t.rotation.x(), t.rotation.y(), t.rotation.z()};
-  j["translation_m"] = {t.translation.x(), t.translation.y(), t.translation.z()};
-  return j.dump();
-}
-
-std::string PointToJson(const Eigen::Vector2d& p) { return nlohmann::json({p.x(), p.y()}).dump(); }
-
 std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, const CaptureCompleteness& capture,
                         const TauFitOptions& fit, const PhaseLayerChoice* phase, double color_max,
-                        const nlohmann::json& validation, const nlohmann::json& consistency) {
+                        const nlohmann::json& validation, const nlohmann::json& consistency,
+                        const Provenance& provenance) {
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
+  j["provenance"] = ProvenanceJson(provenance);
   j["format_version"] = "1.0";
   j["falsecolor_range"] = {0.0, color_max};
   j["result"] = s.IsUsable() ? "success" : "failure";
@@ -183,17 +176,13 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
 
   const SampleInfo& sample = session.rig.sample;
   Image& tau = maps.tau;
-  tau.attributes()["format_version"] = "1.0";
-  tau.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
-  tau.attributes()["git_hash"] = THINSLAB_GIT_HASH;
-  tau.attributes()["options_digest"] = "fnv1a64:" + Digest(run.options_ini);
-  tau.attributes()["cam_from_sample"] = RigidToJson(data.camera.cam_from_sample);
-  tau.attributes()["source_session"] = session_dir;
-  tau.attributes()["region_min_m"] = PointToJson(sample.region_min_m);
-  tau.attributes()["region_max_m"] = PointToJson(sample.region_max_m);
-  tau.attributes()["pixel_pitch_m"] = nlohmann::json(data.pixel_pitch_m).dump();
+  const Provenance provenance{"fit tau", session_dir, "", run.options_ini};
+  SetWorldToCamera(data.camera.cam_from_sample, &tau);
+  tau.numeric_attributes()["region_min_m"] = {sample.region_min_m.x(), sample.region_min_m.y()};
+  tau.numeric_attributes()["region_max_m"] = {sample.region_max_m.x(), sample.region_max_m.y()};
+  tau.numeric_attributes()["pixel_pitch_m"] = {data.pixel_pitch_m};
   tau.attributes()["model"] = fit.refine_scattering ? "gu2007_eq5_eq6_refined" : "gu2007_eq7";
-  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), "tau.exr"), tau));
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), "tau.exr"), tau, {"tau", {"status"}}, provenance));
 
   const Image status = tau.Channel(2);
   FalseColorOptions color;
@@ -205,7 +194,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_falsecolor.png"), tau, 0, &status, color));
   color.label = "tau Eq.7";
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_plain_falsecolor.png"), tau, 1, &status, color));
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value, validation, consistency)));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value, validation, consistency, provenance)));
   THINSLAB_RETURN_IF_ERROR(
       WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport() + validation_text));
   if (!validation_text.empty()) std::cout << validation_text;

@@ -130,6 +130,14 @@ py::tuple ReadExrArrays(const std::string& path) {
   for (int c = 0; c < image.num_channels(); ++c) channels[py::str(image.channel_names()[c])] = ChannelArray(image, c);
   py::dict attributes;
   for (const auto& [key, value] : image.attributes()) attributes[py::str(key)] = value;
+  // Numeric header attributes (docs/format.md "Output maps"): a float, or a list of floats.
+  for (const auto& [key, values] : image.numeric_attributes()) {
+    if (values.size() == 1) {
+      attributes[py::str(key)] = values[0];
+    } else {
+      attributes[py::str(key)] = py::cast(values);
+    }
+  }
   return py::make_tuple(channels, attributes);
 }
 

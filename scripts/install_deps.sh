@@ -34,6 +34,8 @@ packages=(
   python3-numpy
   python3-pytest
   python3-matplotlib
+  python3-openimageio
+  python3-opencv
   bc
 )
 

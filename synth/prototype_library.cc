@@ -190,13 +190,11 @@ Status WritePrototype(const std::string& library_dir, const Prototype& p, bool o
   StagedDirectory out(dir, "synth add-prototype");
   THINSLAB_RETURN_IF_ERROR(out.Init());
   Image tau = p.tau;
-  tau.attributes()["format_version"] = "1.0";
   tau.attributes()["prototype"] = p.name;
   tau.attributes()["category"] = p.category;
-  tau.attributes()["pixel_pitch_m"] = Num(p.pixel_pitch_m);
-  tau.attributes()["thinslab_version"] = THINSLAB_VERSION_STRING;
-  tau.attributes()["git_hash"] = THINSLAB_GIT_HASH;
-  THINSLAB_RETURN_IF_ERROR(WriteExr(JoinPath(out.path(), kPrototypeTauName), tau));
+  tau.numeric_attributes()["pixel_pitch_m"] = {p.pixel_pitch_m};
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), kPrototypeTauName), tau, {"tau", {}},
+                                       {"synth add-prototype", p.provenance, "", ""}));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), kPrototypeManifestName), j.dump(2) + "\n"));
   return out.Commit();
 }
@@ -241,15 +239,9 @@ Status PrototypeFromFit(const PrototypeFromFitOptions& o, Prototype* p) {
   const int tc = map.ChannelIndex("tau"), sc = map.ChannelIndex("status");
   if (tc < 0 || sc < 0)
     return Status::Error(tau_path + ": needs channels 'tau' and 'status' (a `thinslab fit tau` map)");
-  const auto pitch_it = map.attributes().find("pixel_pitch_m");
-  if (pitch_it == map.attributes().end()) return Status::Error(tau_path + ": missing header attribute 'pixel_pitch_m'");
-  try {
-    size_t used = 0;
-    p->pixel_pitch_m = std::stod(pitch_it->second, &used);
-    if (used != pitch_it->second.size()) throw std::invalid_argument("trailing characters");
-  } catch (const std::exception&) {
-    return Status::Error(tau_path + ": header attribute 'pixel_pitch_m' = '" + pitch_it->second + "' is not a number");
-  }
+  const std::vector<double>* pitch = map.NumericAttribute("pixel_pitch_m", 1);
+  if (pitch == nullptr) return Status::Error(tau_path + ": missing numeric header attribute 'pixel_pitch_m'");
+  p->pixel_pitch_m = (*pitch)[0];
   int x0 = o.crop_x, y0 = o.crop_y, w = o.crop_width, h = o.crop_height;
   if (w == 0) {
     x0 = y0 = 0;

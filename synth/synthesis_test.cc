@@ -244,7 +244,7 @@ void WriteFakeFits(const std::string& root, bool tau_success, float masked_share
   const std::string tau_dir = JoinPath(root, "tau"), phase_dir = JoinPath(root, "phase");
   ASSERT_TRUE(CreateDirectories(tau_dir).ok());
   ASSERT_TRUE(CreateDirectories(phase_dir).ok());
-  Image map(40, 30, {"tau", "status", "tau_plain"});
+  Image map(40, 30, {"tau", "status", "tau_eq7"});
   for (int y = 0; y < 30; ++y) {
     for (int x = 0; x < 40; ++x) {
       map.at(x, y, 0) = static_cast<float>(0.6 * std::exp(-0.5 * (Sqr(x - 20.0) + Sqr(y - 15.0)) / 16) + 0.005);

@@ -362,7 +362,7 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   ASSERT_EQ(sim.exit_code, 0) << sim.output;
   const RunResult fit = RunThinslab("fit dmf " + scan + " --pitch-mm 8 --cluster-fraction 0.2");
   ASSERT_EQ(fit.exit_code, 0) << fit.output;
-  for (const char* file : {"maps.exr", "ndf_atlas.exr", "alpha_falsecolor.png", "status_falsecolor.png", "summary.json", "summary.txt",
+  for (const char* file : {"maps.exr", "ndf_atlas.exr", "top_face_weight_falsecolor.png", "status_falsecolor.png", "summary.json", "summary.txt",
                            "options.ini"}) {
     EXPECT_TRUE(std::filesystem::exists(scan + "/fit/dmf/" + file)) << file;
   }
@@ -422,7 +422,7 @@ TEST(DmfCliTest, FitsADotScanAndRefusesBadInput) {
   for (int p = 0; p < rungs.width() * rungs.height(); ++p) {
     const float rung = rungs.data()[p * rungs.num_channels() + rung_channel];
     EXPECT_TRUE(rung == -1 || rung == 0 || rung == 3 || rung == 4 || rung == 5) << rung;
-    const float alpha = chosen_maps.data()[p * chosen_maps.num_channels() + chosen_maps.ChannelIndex("alpha")];
+    const float alpha = chosen_maps.data()[p * chosen_maps.num_channels() + chosen_maps.ChannelIndex("top_face_weight")];
     if (rung == 3) {
       EXPECT_TRUE(alpha == 0 || alpha == 1) << "point " << p << " alpha " << alpha;
     }

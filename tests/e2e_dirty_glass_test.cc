@@ -8,6 +8,7 @@
 
 #include "thinslab/app/commands.h"
 #include "thinslab/core/exr_io.h"
+#include "thinslab/core/manifest_io.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {
@@ -68,7 +69,15 @@ TEST_P(DirtyGlassTauTest, RefinementMeetsAccuracyAndBeatsPlainEq7) {
   EXPECT_GE(written.ChannelIndex("tau"), 0);
   EXPECT_GE(written.ChannelIndex("status"), 0);
   EXPECT_EQ(written.attributes().count("options_digest"), 1u);
-  EXPECT_EQ(written.attributes().count("cam_from_sample"), 1u);
+  EXPECT_EQ(written.attributes()["format_version"], kOutputFormatVersion);
+  EXPECT_EQ(written.attributes()["primary_channel"], "tau");
+  // The camera pose as OpenEXR's worldToCamera: the capture's own cam_from_sample.
+  Session capture;
+  ASSERT_TRUE(ReadSession(session, &capture).ok());
+  Rigid3d pose;
+  ASSERT_TRUE(GetWorldToCamera(written, &pose));
+  EXPECT_LT((pose.translation - capture.rig.cameras[0].cam_from_sample.translation).norm(), 1e-6);
+  EXPECT_GT(std::abs(pose.rotation.dot(capture.rig.cameras[0].cam_from_sample.rotation)), 1 - 1e-6);
 }
 
 INSTANTIATE_TEST_SUITE_P(BoardDistances, DirtyGlassTauTest, ::testing::Values(Case{1.0}, Case{10.0}),

@@ -396,7 +396,7 @@ TEST_F(DmfEndToEnd, CliLadderChoosesPerRegionAndTheMapsHoldTheChoice) {
       const int rung = static_cast<int>(rungs.at(p % rungs.width(), p / rungs.width(), rungs.ChannelIndex("rung")));
       ++counts[rung];
       if (rung == 3) {
-        const float alpha = maps.at(p % maps.width(), p / maps.width(), maps.ChannelIndex("alpha"));
+        const float alpha = maps.at(p % maps.width(), p / maps.width(), maps.ChannelIndex("top_face_weight"));
         EXPECT_TRUE(alpha == 0 || alpha == 1) << r.name << " point " << p << " alpha " << alpha;
       }
     }

@@ -45,7 +45,7 @@ def test_fit_tau_equals_the_cli(shadow_capture, tmp_path):
     assert fit.summary["result"] == "success"
     tau = fit.maps["tau"]
     assert tau.shape == tuple(fit.summary["grid"][::-1])
-    assert set(fit.maps) >= {"tau", "tau_plain", "status", "sigma_tau"}
+    assert set(fit.maps) >= {"tau", "tau_eq7", "status", "sigma_tau"}
     assert fit.attributes["options_digest"].startswith("fnv1a64:")
     # The same fit through the CLI binary: the same map, bit for bit.
     subprocess.run([CLI, "fit", "tau", shadow_capture, "--out", str(tmp_path / "cli"), "--albedo", "0.3",
@@ -155,3 +155,39 @@ def test_progress_reports_and_cancels(shadow_capture, tmp_path):
     with pytest.raises(KeyError, match="from the callback"):
         thinslab.fit_tau(shadow_capture, out=str(tmp_path / "raised"), progress=failing)
     assert not os.path.exists(tmp_path / "raised")
+
+
+def test_outputs_read_with_openimageio_and_opencv(shadow_capture, tmp_path):
+    """Issue #26 item 1: tau.exr as a user's program reads it (OpenImageIO lists layers and the
+    integer status; cv::imread returns the primary map), and read_exr's typed attributes."""
+    import OpenImageIO  # Debian python3-openimageio, python3-opencv (scripts/install_deps.sh).
+    os.environ["OPENCV_IO_ENABLE_OPENEXR"] = "1"  # OpenCV's own opt-in, read when cv2 loads.
+    import cv2
+
+    fit = thinslab.fit_tau(shadow_capture, out=str(tmp_path / "fit"), split_half_check=False)
+    path = str(tmp_path / "fit" / "tau.exr")
+    image = OpenImageIO.ImageInput.open(path)
+    assert image is not None, OpenImageIO.geterror()
+    spec = image.spec()
+    names = list(spec.channelnames)
+    assert {"Y", "tau.Y", "tau_eq7.Y", "sigma_tau.Y", "status.Y"} <= set(names)
+    formats = [str(f) for f in spec.channelformats] if spec.channelformats else [str(spec.format)] * len(names)
+    assert formats[names.index("status.Y")] == "uint"
+    assert formats[names.index("tau.Y")] == "float"
+    assert spec.getattribute("options_digest") == fit.attributes["options_digest"]
+    assert spec.getattribute("thinslab_command") == "fit tau"
+    pixels = image.read_image("float")
+    status_channel = names.index("status.Y")  # Integers: read as such (OIIO normalises them to float).
+    status = image.read_image(0, 0, status_channel, status_channel + 1, "uint")
+    image.close()
+    np.testing.assert_array_equal(pixels[:, :, names.index("tau.Y")], fit.maps["tau"])
+    assert status.dtype == np.uint32 and status.max() > 0
+    np.testing.assert_array_equal(status[:, :, 0], fit.maps["status"])
+
+    seen = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+    assert seen is not None and seen.dtype == np.float32
+    np.testing.assert_array_equal(seen, fit.maps["tau"])
+
+    _, attributes = thinslab.read_exr(path)
+    assert attributes["pixel_pitch_m"] == fit.summary["resolution"]["map_pitch_m"]
+    assert len(attributes["worldToCamera"]) == 16

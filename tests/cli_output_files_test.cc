@@ -1,0 +1,132 @@
+// SPDX-License-Identifier: Apache-2.0
+// Issue #26 item 1: every output folder's files are what other programs read. Each command that
+// writes maps runs once on a small simulated capture; then every EXR in every output folder is
+// checked as a user's program would open it (OpenEXR's channel list and types, cv::imread) and
+// for the provenance that core/provenance.h stamps, and every summary.json for the same
+// provenance, whose options digest is that of the folder's options.ini.
+#include <ImfChannelList.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfStringAttribute.h>
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include "thinslab/core/file.h"
+#include "thinslab/core/provenance.h"
+#include "tests/testing/json_file.h"
+#include "tests/testing/run_ok.h"
+#include "tests/testing/temp_dir.h"
+
+namespace thinslab {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kSmallShadow = " --camera-width-px 240 --camera-height-px 180 --photons 20000 --frames 2";
+constexpr const char* kSmallLaser = " --camera-width-px 320 --camera-height-px 240";
+constexpr const char* kSmallDots =
+    " --grid-nx 6 --grid-ny 6 --validation-dots 2 --photons-k 4 --camera-width-px 160 --camera-height-px 120 "
+    "--table-bins 16";
+
+std::string StringAttribute(const Imf::Header& header, const char* key) {
+  const auto* a = header.findTypedAttribute<Imf::StringAttribute>(key);
+  return a == nullptr ? "" : a->value();
+}
+
+// One output EXR as other programs see it; returns its thinslab_command and options_digest.
+void CheckExr(const std::string& path, std::string* command, std::string* digest) {
+  SCOPED_TRACE(path);
+  Imf::InputFile file(path.c_str());
+  const Imf::Header& header = file.header();
+  EXPECT_EQ(StringAttribute(header, "format_version"), kOutputFormatVersion);
+  for (const char* key : {"thinslab_version", "git_hash", "thinslab_command", "options_digest", "source_session",
+                          "primary_channel", "comments"}) {
+    EXPECT_FALSE(StringAttribute(header, key).empty()) << "attribute " << key;
+  }
+  *command = StringAttribute(header, "thinslab_command");
+  *digest = StringAttribute(header, "options_digest");
+  const std::string primary = StringAttribute(header, "primary_channel");
+  EXPECT_NE(header.channels().findChannel("Y"), nullptr) << "no default-layer Y";
+  EXPECT_NE(header.channels().findChannel(primary + ".Y"), nullptr) << "no layer " << primary;
+  for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
+    const std::string name = it.name();
+    EXPECT_TRUE(name == "Y" || (name.size() > 2 && name.substr(name.size() - 2) == ".Y")) << name;
+    if (name == "status.Y" || name == "valid.Y" || name == "saturated.Y") {
+      EXPECT_EQ(it.channel().type, Imf::UINT) << name << " is an integer channel";
+    }
+  }
+  const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(image.empty()) << "cv::imread cannot read it";
+  EXPECT_EQ(image.type(), CV_32FC1);
+  const Imath::Box2i window = header.dataWindow();
+  EXPECT_EQ(image.cols, window.max.x - window.min.x + 1);
+  EXPECT_EQ(image.rows, window.max.y - window.min.y + 1);
+}
+
+// Every EXR and summary.json under `folder`: the same command, and the digest of options.ini.
+void CheckOutputFolder(const std::string& folder, const std::string& expected_command, int min_exr_files) {
+  SCOPED_TRACE(folder);
+  std::string options_digest;
+  std::string ini;
+  if (ReadFileToString(JoinPath(folder, "options.ini"), &ini).ok()) options_digest = OptionsDigest(ini);
+  int exr_files = 0;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    if (entry.path().extension() != ".exr") continue;
+    ++exr_files;
+    std::string command, digest;
+    CheckExr(entry.path(), &command, &digest);
+    EXPECT_EQ(command, expected_command) << entry.path();
+    if (!options_digest.empty()) {
+      EXPECT_EQ(digest, options_digest) << entry.path();
+    }
+  }
+  EXPECT_GE(exr_files, min_exr_files);
+  if (!FileExists(JoinPath(folder, "summary.json"))) return;
+  const nlohmann::json provenance = ReadJsonFile(JoinPath(folder, "summary.json"))["provenance"];
+  ASSERT_TRUE(provenance.is_object()) << folder << "/summary.json has no provenance";
+  EXPECT_EQ(provenance["command"], expected_command);
+  EXPECT_EQ(provenance["format_version"], kOutputFormatVersion);
+  EXPECT_FALSE(provenance["git_hash"].get<std::string>().empty());
+  if (!options_digest.empty()) {
+    EXPECT_EQ(provenance["options_digest"], options_digest);
+  }
+}
+
+TEST(CliOutputFiles, EveryOutputFolderIsReadableByOtherProgramsAndCarriesItsProvenance) {
+  setenv("OPENCV_IO_ENABLE_OPENEXR", "1", 1);  // OpenCV reads EXR only when the user enables it.
+  TempDir dir;
+  const std::string shadow = dir / "shadow", lobe = dir / "lobe", dots = dir / "dots";
+  RunThinslabOk("sim shadow-maps " + shadow + kSmallShadow);
+  RunThinslabOk("fit tau " + shadow + " --split-half-check false");
+  RunThinslabOk("predict " + shadow + " --out " + (dir / "predict_shadow"));
+  RunThinslabOk("calib hdr " + shadow + " --kind reference");
+  RunThinslabOk("calib flat " + shadow);
+  RunThinslabOk("sim laser " + lobe + kSmallLaser);
+  RunThinslabOk("fit phase " + lobe);
+  RunThinslabOk("predict " + lobe + " --out " + (dir / "predict_lobe"));
+  RunThinslabOk("sim dot-scan " + dots + kSmallDots);
+  RunThinslabOk("fit dmf " + dots + " --pitch-mm 4 --hold-out true --ladder");
+  RunThinslabOk("predict " + dots + " --out " + (dir / "predict_dots"));
+  RunThinslabOk("synth layer " + (dir / "layer") + " --prototypes dust_specks_a --width 64 --height 48 --preview false");
+
+  CheckOutputFolder(shadow + "/fit/tau", "fit tau", 1);
+  CheckOutputFolder(dir / "predict_shadow", "predict", 2);
+  CheckOutputFolder(shadow + "/calib/hdr", "calib hdr", 1);
+  CheckOutputFolder(lobe + "/fit/phase", "fit phase", 0);
+  CheckOutputFolder(dir / "predict_lobe", "predict", 1);
+  CheckOutputFolder(dots + "/fit/dmf", "fit dmf", 3);  // maps, ndf_atlas, ladder.
+  CheckOutputFolder(dir / "predict_dots", "predict", 2);
+  CheckOutputFolder(dir / "layer", "synth layer", 1);
+  std::string command, digest;
+  CheckExr(shadow + "/calib/flat_field.exr", &command, &digest);
+  EXPECT_EQ(command, "calib flat");
+}
+
+}  // namespace
+}  // namespace thinslab
