@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -35,11 +36,17 @@ bool ParseInt64(const std::string& s, long long* out) {
   return true;
 }
 
+// The shortest text that reads back as the same double, so options.ini repeats a run exactly.
 std::string FormatDouble(double v) {
-  std::ostringstream out;
-  out.precision(10);
-  out << v;
-  return out.str();
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), v);
+  return std::string(buffer, result.ptr);
+}
+
+std::string Trim(const std::string& s) {
+  const size_t begin = s.find_first_not_of(" \t\r");
+  if (begin == std::string::npos) return "";
+  return s.substr(begin, s.find_last_not_of(" \t\r") - begin + 1);
 }
 
 }  // namespace
@@ -104,8 +111,63 @@ bool OptionParser::IsSet(const std::string& name) const {
   return std::find(set_names_.begin(), set_names_.end(), name) != set_names_.end();
 }
 
+Status OptionParser::ApplyConfig(const std::string& path, std::vector<bool>* positional_given) {
+  const std::string where = "thinslab " + command_ + ": --config " + path;
+  std::string text;
+  const Status read = ReadFileToString(path, &text);
+  if (!read.ok()) return Status::Error(where + ": " + read.message());
+  std::istringstream lines(text);
+  std::string line;
+  for (int number = 1; std::getline(lines, line); ++number) {
+    const std::string at = where + " line " + std::to_string(number);
+    line = Trim(line);
+    if (number == 1 && line.rfind("# thinslab ", 0) == 0) {
+      const std::string written_by = line.substr(2, line.find(':') == std::string::npos ? std::string::npos : line.find(':') - 2);
+      if (written_by != "thinslab " + command_) {
+        return Status::Error(where + ": written by `" + written_by + "`, not `thinslab " + command_ + "`");
+      }
+    }
+    if (line.empty() || line[0] == '#') continue;
+    const size_t eq = line.find('=');
+    if (eq == std::string::npos) return Status::Error(at + ": expected 'name = value', got '" + line + "'");
+    const std::string name = Trim(line.substr(0, eq)), value = Trim(line.substr(eq + 1));
+    bool applied = false;
+    for (size_t k = 0; k < positionals_.size(); ++k) {
+      if (positionals_[k].name != name) continue;
+      *positionals_[k].value = value;
+      (*positional_given)[k] = !value.empty();
+      applied = true;
+    }
+    for (const Option& o : options_) {
+      if (o.name != name) continue;
+      if (!o.set(value)) return Status::Error(at + ": " + name + " = '" + value + "' is not a valid " + o.kind);
+      applied = true;
+    }
+    if (!applied) return Status::Error(at + ": '" + name + "' is not an option of thinslab " + command_);
+  }
+  return Status::Ok();
+}
+
 Status OptionParser::Parse(int argc, char** argv) {
   set_names_.clear();
+  // --config first, whatever its place: the command line's options override the file's.
+  std::vector<bool> positional_given(positionals_.size(), false);
+  std::vector<char*> args;
+  for (int i = 0; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--config" || arg.rfind("--config=", 0) == 0) {
+      std::string path = arg.size() > 8 ? arg.substr(9) : "";
+      if (arg == "--config") {
+        if (i + 1 >= argc) return Status::Error("thinslab " + command_ + ": option --config needs a value (an options.ini)");
+        path = argv[++i];
+      }
+      THINSLAB_RETURN_IF_ERROR(ApplyConfig(path, &positional_given));
+      continue;
+    }
+    args.push_back(argv[i]);
+  }
+  argc = static_cast<int>(args.size());
+  argv = args.data();
   size_t next_positional = 0;
   for (int i = 0; i < argc; ++i) {
     std::string arg = argv[i];
@@ -149,10 +211,11 @@ Status OptionParser::Parse(int argc, char** argv) {
     if (next_positional >= positionals_.size()) {
       return Status::Error("thinslab " + command_ + ": unexpected argument '" + arg + "'");
     }
+    positional_given[next_positional] = true;
     *positionals_[next_positional++].value = arg;
   }
-  for (size_t k = next_positional; k < positionals_.size(); ++k) {
-    if (positionals_[k].required) {
+  for (size_t k = 0; k < positionals_.size(); ++k) {
+    if (positionals_[k].required && !positional_given[k]) {
       return Status::Error("thinslab " + command_ + ": missing argument " + positionals_[k].name + " (see --help)");
     }
   }
@@ -168,6 +231,7 @@ std::string OptionParser::Usage() const {
   for (const auto& o : options_) {
     out << "  --" << o.name << " <" << o.kind << ">  (default " << o.get() << ")\n      " << o.help << "\n";
   }
+  out << "  --config <options.ini>\n      repeat an earlier run: the options.ini it wrote; options given here override it\n";
   return out.str();
 }
 

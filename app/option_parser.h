@@ -25,9 +25,12 @@ class OptionParser {
   // Positional arguments in order; `required` ones must be given.
   void AddPositional(const std::string& name, std::string* value, const std::string& help, bool required = true);
 
+  // Parses the command line. `--config FILE` (any command) first applies FILE, an options.ini an
+  // earlier run of the same command wrote ("name = value" lines, positionals included), so the
+  // run repeats it exactly; options on the command line override the file's.
   Status Parse(int argc, char** argv);
   bool help_requested() const { return help_requested_; }
-  // True if the last Parse() set option `name` from the command line.
+  // True if the last Parse() set option `name` from the command line (not from --config).
   bool IsSet(const std::string& name) const;
   std::string Usage() const;
   // "name = value" lines, for options.ini.
@@ -44,6 +47,8 @@ class OptionParser {
     std::string* value;
     bool required;
   };
+  Status ApplyConfig(const std::string& path, std::vector<bool>* positional_given);
+
   std::string command_;
   std::vector<Option> options_;
   std::vector<Positional> positionals_;

@@ -6,6 +6,9 @@
 #include <string>
 #include <vector>
 
+#include "thinslab/core/file.h"
+#include "tests/testing/temp_dir.h"
+
 namespace thinslab {
 namespace {
 
@@ -65,6 +68,81 @@ TEST(DigestTest, IsStandardFnv1a64) {
   EXPECT_EQ(Digest(""), "cbf29ce484222325");
   EXPECT_EQ(Digest("a"), "af63dc4c8601ec8c");
   EXPECT_EQ(Digest("foobar"), "85944171f73967e8");
+}
+
+// --config FILE: an options.ini written by ToIni() repeats the run; the command line overrides it.
+TEST(OptionParser, ConfigRepeatsARunAndTheCommandLineOverridesIt) {
+  TempDir dir;
+  std::string capture, out;
+  double albedo = 0.3, pitch = 1e-4;
+  int threads = 2;
+  bool refine = true;
+  auto make = [&](OptionParser* p) {
+    p->AddPositional("CAPTURE", &capture, "");
+    p->AddString("out", &out, "");
+    p->AddDouble("albedo", &albedo, "");
+    p->AddDouble("pitch", &pitch, "");
+    p->AddInt("threads", &threads, "");
+    p->AddBool("refine", &refine, "");
+  };
+  OptionParser first("fit tau");
+  make(&first);
+  ASSERT_TRUE(ParseArgs(&first, {"cap", "--albedo", "0.123456789012345678", "--pitch", "3.3e-05", "--refine",
+                                 "false", "--out", "x/y"})
+                  .ok());
+  const std::string ini = first.ToIni();
+  const double albedo_given = albedo, pitch_given = pitch;
+  const std::string path = dir / "options.ini";
+  ASSERT_TRUE(WriteFileAtomically(path, ini).ok());
+
+  capture = out = "";
+  albedo = 0.3, pitch = 1e-4, refine = true;
+  OptionParser again("fit tau");
+  make(&again);
+  ASSERT_TRUE(ParseArgs(&again, {"--config", path}).ok());
+  EXPECT_EQ(capture, "cap");
+  EXPECT_EQ(out, "x/y");
+  EXPECT_EQ(albedo, albedo_given);  // Bit for bit: doubles are written to round-trip.
+  EXPECT_EQ(pitch, pitch_given);
+  EXPECT_FALSE(refine);
+  EXPECT_EQ(again.ToIni(), ini);
+  EXPECT_FALSE(again.IsSet("albedo"));  // Set by the file, not the command line.
+
+  OptionParser overridden("fit tau");
+  make(&overridden);
+  ASSERT_TRUE(ParseArgs(&overridden, {"other", "--threads", "1", "--config=" + path}).ok());
+  EXPECT_EQ(capture, "other");
+  EXPECT_EQ(threads, 1);
+  EXPECT_EQ(albedo, albedo_given);
+  EXPECT_TRUE(overridden.IsSet("threads"));
+}
+
+TEST(OptionParser, ConfigErrorsNameTheFileLineAndOption) {
+  TempDir dir;
+  std::string capture;
+  double albedo = 0.3;
+  OptionParser parser("fit tau");
+  parser.AddPositional("CAPTURE", &capture, "");
+  parser.AddDouble("albedo", &albedo, "");
+  const std::string path = dir / "options.ini";
+  auto error = [&](const std::string& text) {
+    EXPECT_TRUE(WriteFileAtomically(path, text).ok());
+    const Status s = ParseArgs(&parser, {"--config", path});
+    EXPECT_FALSE(s.ok()) << text;
+    return s.message();
+  };
+  EXPECT_NE(error("# thinslab fit tau: effective options\nalbedo = half\n").find(path + " line 2: albedo = 'half' is not a valid number"),
+            std::string::npos);
+  EXPECT_NE(error("CAPTURE = c\nsmoothness = 1\n").find("line 2: 'smoothness' is not an option of thinslab fit tau"),
+            std::string::npos);
+  EXPECT_NE(error("# thinslab fit dmf: effective options\n").find("written by `thinslab fit dmf`, not `thinslab fit tau`"),
+            std::string::npos);
+  EXPECT_NE(error("albedo 0.3\n").find("line 1: expected 'name = value'"), std::string::npos);
+  const Status missing = ParseArgs(&parser, {"--config", dir / "none.ini"});
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.message().find("none.ini"), std::string::npos);
+  // A config without the positional leaves it missing.
+  EXPECT_NE(error("albedo = 0.2\n").find("missing argument CAPTURE"), std::string::npos);
 }
 
 }  // namespace

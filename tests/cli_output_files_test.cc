@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "thinslab/core/exr_io.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/provenance.h"
 #include "tests/testing/json_file.h"
@@ -98,12 +99,34 @@ void CheckOutputFolder(const std::string& folder, const std::string& expected_co
   }
 }
 
+// Issue #26 item 2: `thinslab COMMAND --config FOLDER/options.ini` repeats the run exactly: the
+// same options.ini (so the same digest) and the same map, value for value.
+void RerunFromOptionsIni(const TempDir& dir, const std::string& command, const std::string& folder,
+                         const std::string& map_file) {
+  SCOPED_TRACE(command + " --config " + folder + "/options.ini");
+  std::string ini;
+  ASSERT_TRUE(ReadFileToString(JoinPath(folder, "options.ini"), &ini).ok());
+  const std::string copy = dir / "rerun_options.ini";  // The rerun replaces the folder.
+  ASSERT_TRUE(WriteFileAtomically(copy, ini).ok());
+  Image before, after;
+  ASSERT_TRUE(ReadExr(JoinPath(folder, map_file), &before).ok());
+  RunThinslabOk(command + " --config " + copy);
+  std::string ini_after;
+  ASSERT_TRUE(ReadFileToString(JoinPath(folder, "options.ini"), &ini_after).ok());
+  EXPECT_EQ(ini_after, ini);
+  ASSERT_TRUE(ReadExr(JoinPath(folder, map_file), &after).ok());
+  EXPECT_EQ(after.attributes().at("options_digest"), before.attributes().at("options_digest"));
+  EXPECT_EQ(after.attributes().at("options_digest"), OptionsDigest(ini));
+  EXPECT_EQ(after.channel_names(), before.channel_names());
+  EXPECT_TRUE(after.data() == before.data()) << map_file << " differs after the rerun";
+}
+
 TEST(CliOutputFiles, EveryOutputFolderIsReadableByOtherProgramsAndCarriesItsProvenance) {
   setenv("OPENCV_IO_ENABLE_OPENEXR", "1", 1);  // OpenCV reads EXR only when the user enables it.
   TempDir dir;
   const std::string shadow = dir / "shadow", lobe = dir / "lobe", dots = dir / "dots";
   RunThinslabOk("sim shadow-maps " + shadow + kSmallShadow);
-  RunThinslabOk("fit tau " + shadow + " --split-half-check false");
+  RunThinslabOk("fit tau " + shadow + " --split-half-check false --albedo 0.2718281828459045 --threads 1");
   RunThinslabOk("predict " + shadow + " --out " + (dir / "predict_shadow"));
   RunThinslabOk("calib hdr " + shadow + " --kind reference");
   RunThinslabOk("calib flat " + shadow);
@@ -126,6 +149,19 @@ TEST(CliOutputFiles, EveryOutputFolderIsReadableByOtherProgramsAndCarriesItsProv
   std::string command, digest;
   CheckExr(shadow + "/calib/flat_field.exr", &command, &digest);
   EXPECT_EQ(command, "calib flat");
+
+  RerunFromOptionsIni(dir, "fit tau", shadow + "/fit/tau", "tau.exr");
+  RerunFromOptionsIni(dir, "fit dmf", dots + "/fit/dmf", "maps.exr");
+  RerunFromOptionsIni(dir, "calib hdr", shadow + "/calib/hdr", "reference_clean.exr");
+  RerunFromOptionsIni(dir, "synth layer", dir / "layer", "layer.exr");
+  // A changed option is a different run: another digest.
+  std::string ini;
+  ASSERT_TRUE(ReadFileToString(shadow + "/fit/tau/options.ini", &ini).ok());
+  ASSERT_TRUE(WriteFileAtomically(dir / "tau.ini", ini).ok());
+  RunThinslabOk("fit tau --config " + (dir / "tau.ini") + " --albedo 0.3 --out " + (dir / "changed"));
+  Image changed;
+  ASSERT_TRUE(ReadExr(dir / "changed/tau.exr", &changed).ok());
+  EXPECT_NE(changed.attributes().at("options_digest"), OptionsDigest(ini));
 }
 
 }  // namespace
