@@ -25,6 +25,7 @@
 #include "thinslab/acquire/session_journal.h"
 #include "thinslab/acquire/shadow_map_session.h"
 #include "thinslab/app/commands.h"
+#include "thinslab/app/subcommands.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/session_io.h"
@@ -883,29 +884,41 @@ int FoldJournal(int argc, char** argv) {
   return 0;
 }
 
+// The camera option decides whether the simulated rig's options apply (their --help too).
+bool SimulatedCamera(int argc, char** argv) { return PeekOption(argc, argv, "camera", "sim") == "sim"; }
+int AcquireShadowMapsCommand(int argc, char** argv) {
+  return AcquireShadowMaps(argc, argv, SimulatedCamera(argc, argv));
+}
+int AcquireLaserCommand(int argc, char** argv) { return AcquireLaser(argc, argv, SimulatedCamera(argc, argv)); }
+int AcquireDotScanCommand(int argc, char** argv) {
+  return AcquireDisplaySession(argc, argv, SimulatedCamera(argc, argv), DisplayKind::kDotScan);
+}
+int AcquireBracketCommand(int argc, char** argv) {
+  return AcquireDisplaySession(argc, argv, SimulatedCamera(argc, argv), DisplayKind::kBracket);
+}
+int AcquireGammaCommand(int argc, char** argv) {
+  return AcquireDisplaySession(argc, argv, SimulatedCamera(argc, argv), DisplayKind::kGamma);
+}
+
 }  // namespace
 
+const std::vector<Subcommand>& AcquireSubcommands() {
+  static const std::vector<Subcommand> table = {
+      {"shadow-maps", AcquireShadowMapsCommand, "OUTPUT", "shadow maps: projector patterns through the sample"},
+      {"laser", AcquireLaserCommand, "OUTPUT", "laser lobes through the layer, exposure brackets"},
+      {"dot-scan", AcquireDotScanCommand, "OUTPUT", "single monitor dots behind the sample (Dai et al. 2009)"},
+      {"bracket", AcquireBracketCommand, "OUTPUT", "exposure brackets of display states (camera response)"},
+      {"gamma", AcquireGammaCommand, "OUTPUT", "display drive levels for the display gamma table"},
+      {"fold-journal", FoldJournal, "OUTPUT", "write the journaled frames of a killed capture into session.json"},
+  };
+  return table;
+}
+
 int RunAcquire(int argc, char** argv) {
-  const std::string kind = argc > 0 ? argv[0] : "";
-  const char* usage =
-      "usage: thinslab acquire <shadow-maps|laser|dot-scan|bracket|gamma> [--camera sim|aravis:<ip>|v4l2:<device>]\n"
-      "       [--display <n>] [--laser <spec>] [--gamma-table <file>] [--resume] [kind options] OUTPUT\n"
-      "       thinslab acquire fold-journal OUTPUT writes the journaled frames of a killed capture into session.json.\n"
-      "       thinslab acquire <kind> --help lists the options of a kind (and of its simulated rig).\n";
-  if (kind.empty() || kind == "--help" || kind == "-h") {
-    std::cout << usage;
-    return kind.empty() ? 2 : 0;
-  }
-  if (kind == "fold-journal") return FoldJournal(argc - 1, argv + 1);
-  const bool sim = PeekOption(argc - 1, argv + 1, "camera", "sim") == "sim";
-  if (kind == "shadow-maps") return AcquireShadowMaps(argc - 1, argv + 1, sim);
-  if (kind == "laser") return AcquireLaser(argc - 1, argv + 1, sim);
-  if (kind == "dot-scan") return AcquireDisplaySession(argc - 1, argv + 1, sim, DisplayKind::kDotScan);
-  if (kind == "bracket") return AcquireDisplaySession(argc - 1, argv + 1, sim, DisplayKind::kBracket);
-  if (kind == "gamma") return AcquireDisplaySession(argc - 1, argv + 1, sim, DisplayKind::kGamma);
-  std::cerr << "error: thinslab acquire: unknown session kind '" << kind
-            << "' (expected shadow-maps, laser, dot-scan, bracket or gamma)\n";
-  return 2;
+  return DispatchSubcommand("acquire", AcquireSubcommands(), argc, argv, "session kind",
+                            "  options: [--camera sim|aravis:<ip>|v4l2:<device>] [--display <n>] [--laser <spec>]\n"
+                            "           [--gamma-table <file>] [--resume]; <kind> --help lists a kind's options (and "
+                            "its simulated rig's).\n");
 }
 
 }  // namespace thinslab

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "thinslab/app/commands.h"
+#include "thinslab/app/subcommands.h"
 #include "thinslab/app/knob_sweep.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/core/parallel.h"
@@ -255,11 +256,13 @@ int RunBenchSweep(int argc, char** argv) {
 
 }  // namespace
 
-int RunBench(int argc, char** argv) {
-  const std::string sub = argc > 0 ? argv[0] : "";
-  if (sub == "sweep") return RunBenchSweep(argc - 1, argv + 1);
-  return SubcommandUsage("bench", sub,
-                         "usage: thinslab bench sweep OUTDIR [options]   (speed-against-accuracy sweep of the fit knobs)\n");
+const std::vector<Subcommand>& BenchSubcommands() {
+  static const std::vector<Subcommand> table = {
+      {"sweep", RunBenchSweep, "OUTDIR", "speed-against-accuracy sweep of the fit knobs, with Pareto fronts"},
+  };
+  return table;
 }
+
+int RunBench(int argc, char** argv) { return DispatchSubcommand("bench", BenchSubcommands(), argc, argv); }
 
 }  // namespace thinslab

@@ -20,15 +20,6 @@
 
 namespace thinslab {
 
-// A dispatcher's answer to a missing, help or unknown subcommand `what`: the usage on stderr,
-// and for an unknown one an `error:` line naming it; exit 0 for help, 2 otherwise.
-inline int SubcommandUsage(const std::string& command, const std::string& what, const std::string& usage) {
-  std::cerr << usage;
-  if (what.empty() || what == "--help" || what == "-h" || what == "help") return 0;
-  std::cerr << "error: thinslab " << command << ": unknown subcommand '" << what << "'\n";
-  return 2;
-}
-
 int RunInfo(int argc, char** argv);
 int RunSim(int argc, char** argv);
 int RunFit(int argc, char** argv);

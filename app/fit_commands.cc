@@ -10,6 +10,7 @@
 #include "thinslab/app/capture_options.h"
 #include "thinslab/app/command_progress.h"
 #include "thinslab/app/commands.h"
+#include "thinslab/app/subcommands.h"
 #include "thinslab/pipeline/layer_from_phase.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/pipeline/prediction_report.h"
@@ -49,11 +50,9 @@ void AddFitTauOptions(OptionParser* parser, FitTauRun* run) {
   AddIncompleteCaptureOption(parser, &run->allow_incomplete_capture);
 }
 
-int RunFit(int argc, char** argv) {
-  const std::string what = argc > 0 ? argv[0] : "";
-  if (what == "phase") return RunFitPhase(argc - 1, argv + 1);
-  if (what == "dmf") return RunFitDmf(argc - 1, argv + 1);
-  if (what != "tau") return SubcommandUsage("fit", what, "usage: thinslab fit tau|phase|dmf CAPTURE [options]\n");
+namespace {
+
+int RunFitTau(int argc, char** argv) {
   FitTauRun run;
   std::string session_dir, out_dir;
   OptionParser parser("fit tau");
@@ -62,7 +61,7 @@ int RunFit(int argc, char** argv) {
   AddFitTauOptions(&parser, &run);
   parser.AddString("phase", &run.phase_dir,
                    "`fit phase` output folder of the same layer: its model ladder choice sets --refine and --g");
-  Status status = parser.Parse(argc - 1, argv + 1);
+  Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
     return 0;
@@ -85,5 +84,18 @@ int RunFit(int argc, char** argv) {
   if (has_truth) std::cout << comparison.ToJson();
   return 0;
 }
+
+}  // namespace
+
+const std::vector<Subcommand>& FitSubcommands() {
+  static const std::vector<Subcommand> table = {
+      {"tau", RunFitTau, "CAPTURE", "optical thickness map from shadow maps (Gu et al. 2007 Eqs. 5-7)"},
+      {"phase", RunFitPhase, "CAPTURE", "Henyey-Greenstein g from the laser lobe (Gu et al. 2007 Eq. 8)"},
+      {"dmf", RunFitDmf, "CAPTURE", "dual-microfacet SVBTDF maps from a dot scan (Dai et al. 2009)"},
+  };
+  return table;
+}
+
+int RunFit(int argc, char** argv) { return DispatchSubcommand("fit", FitSubcommands(), argc, argv); }
 
 }  // namespace thinslab

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/app/option_parser.h"
 
+#include "thinslab/app/verbosity.h"
+
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
@@ -168,6 +170,7 @@ Status OptionParser::Parse(int argc, char** argv) {
   }
   argc = static_cast<int>(args.size());
   argv = args.data();
+  bool quiet = false, verbose = false;
   size_t next_positional = 0;
   for (int i = 0; i < argc; ++i) {
     std::string arg = argv[i];
@@ -187,6 +190,16 @@ Status OptionParser::Parse(int argc, char** argv) {
       const Option* option = nullptr;
       for (const auto& o : options_) {
         if (o.name == name) option = &o;
+      }
+      if (option == nullptr && (name == "quiet" || name == "verbose")) {
+        // Every command's --quiet and --verbose (app/verbosity.h), unless it has its own.
+        if (!has_value && i + 1 < argc && IsBooleanWord(argv[i + 1])) value = argv[++i], has_value = true;
+        if (has_value && !IsBooleanWord(value)) {
+          return Status::Error("thinslab " + command_ + ": option --" + name + " = '" + value + "' is not a valid true/false");
+        }
+        const bool on = !has_value || value == "true" || value == "1" || value == "yes";
+        (name == "quiet" ? quiet : verbose) = on;
+        continue;
       }
       if (option == nullptr) {
         return Status::Error("thinslab " + command_ + ": unknown option --" + name + " (see --help)");
@@ -219,6 +232,7 @@ Status OptionParser::Parse(int argc, char** argv) {
       return Status::Error("thinslab " + command_ + ": missing argument " + positionals_[k].name + " (see --help)");
     }
   }
+  if (quiet || verbose) SetVerbosity(quiet, verbose);
   return Status::Ok();
 }
 
@@ -232,6 +246,13 @@ std::string OptionParser::Usage() const {
     out << "  --" << o.name << " <" << o.kind << ">  (default " << o.get() << ")\n      " << o.help << "\n";
   }
   out << "  --config <options.ini>\n      repeat an earlier run: the options.ini it wrote; options given here override it\n";
+  for (const char* name : {"quiet", "verbose"}) {
+    const bool own = std::any_of(options_.begin(), options_.end(), [&](const Option& o) { return o.name == name; });
+    if (own) continue;
+    out << "  --" << name
+        << (name[0] == 'q' ? "\n      nothing on stdout, no progress (errors and warnings still on stderr)\n"
+                           : "\n      progress even when stderr is not a terminal, and the libraries' log\n");
+  }
   return out.str();
 }
 

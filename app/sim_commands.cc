@@ -2,6 +2,7 @@
 #include <iostream>
 
 #include "thinslab/app/commands.h"
+#include "thinslab/app/subcommands.h"
 #include "thinslab/app/data_directory.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/core/file.h"
@@ -198,14 +199,16 @@ int RunSimDotScan(int argc, char** argv) {
 
 }  // namespace
 
-int RunSim(int argc, char** argv) {
-  const std::string what = argc > 0 ? argv[0] : "";
-  if (what == "shadow-maps") return RunSimShadowMaps(argc - 1, argv + 1);
-  if (what == "pattern") return RunSimPattern(argc - 1, argv + 1);
-  if (what == "laser") return RunSimLaser(argc - 1, argv + 1);
-  if (what == "dot-scan") return RunSimDotScan(argc - 1, argv + 1);
-  return SubcommandUsage("sim", what,
-                         "usage: thinslab sim shadow-maps OUT | sim laser OUT | sim dot-scan OUT | sim pattern OUT.exr [options]\n");
+const std::vector<Subcommand>& SimSubcommands() {
+  static const std::vector<Subcommand> table = {
+      {"shadow-maps", RunSimShadowMaps, "OUT", "shadow-map capture of a contaminated pane (Gu et al. 2007)"},
+      {"laser", RunSimLaser, "OUT", "laser-lobe capture of a layer (Gu et al. 2007 Eq. 8)"},
+      {"dot-scan", RunSimDotScan, "OUT", "CRT dot-scan capture of a rough slab (Dai et al. 2009)"},
+      {"pattern", RunSimPattern, "OUT.exr", "a contamination tau pattern as EXR"},
+  };
+  return table;
 }
+
+int RunSim(int argc, char** argv) { return DispatchSubcommand("sim", SimSubcommands(), argc, argv); }
 
 }  // namespace thinslab

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "thinslab/app/commands.h"
+#include "thinslab/app/subcommands.h"
 #include "thinslab/app/data_directory.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/core/output_guard.h"
@@ -308,16 +309,16 @@ int RunPreview(int argc, char** argv) {
 
 }  // namespace
 
-int RunSynth(int argc, char** argv) {
-  const std::string what = argc > 0 ? argv[0] : "";
-  if (what == "layer") return RunLayer(argc - 1, argv + 1);
-  if (what == "add-prototype") return RunAddPrototype(argc - 1, argv + 1);
-  if (what == "preview") return RunPreview(argc - 1, argv + 1);
-  if (what == "list") return RunList(argc - 1, argv + 1);
-  return SubcommandUsage("synth", what,
-                         "usage: thinslab synth layer OUT [options] | synth add-prototype LIBRARY [options] |\n"
-                         "       synth preview LAYER.exr [options] | synth list LIBRARY\n"
-                         "(each with --help)\n");
+const std::vector<Subcommand>& SynthSubcommands() {
+  static const std::vector<Subcommand> table = {
+      {"layer", RunLayer, "OUT", "synthesize a contamination layer from library prototypes (Gu Sec. 5.3)"},
+      {"add-prototype", RunAddPrototype, "LIBRARY", "add a prototype to a library from a fit tau (and fit phase) output"},
+      {"preview", RunPreview, "LAYER.exr", "render a layer on a window pane (Gu Fig. 8 scenes)"},
+      {"list", RunList, "[LIBRARY]", "list a library's prototypes"},
+  };
+  return table;
 }
+
+int RunSynth(int argc, char** argv) { return DispatchSubcommand("synth", SynthSubcommands(), argc, argv); }
 
 }  // namespace thinslab

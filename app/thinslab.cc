@@ -12,8 +12,12 @@
 #include <string>
 #include <vector>
 
+#include "thinslab/app/bash_completion.h"
 #include "thinslab/app/commands.h"
 #include "thinslab/app/data_directory.h"
+#include "thinslab/app/subcommands.h"
+#include "thinslab/app/verbosity.h"
+#include "thinslab/core/file.h"
 #include "thinslab/core/version.h"
 
 namespace {
@@ -22,6 +26,7 @@ struct Command {
   const char* name;
   int (*run)(int, char**);
   const char* help;
+  const std::vector<thinslab::Subcommand>& (*subcommands)();  // nullptr: none.
 };
 
 int RunVersion(int, char**) {
@@ -31,21 +36,25 @@ int RunVersion(int, char**) {
 }
 
 int RunHelp(int, char**);
+int RunCompletion(int argc, char** argv);
 
 const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = {
-      {"help", RunHelp, "list the commands"},
-      {"version", RunVersion, "print version, git hash and the data folder"},
-      {"info", thinslab::RunInfo, "validate a capture session and summarise it"},
-      {"acquire", thinslab::RunAcquire, "run a capture session on a rig (default: the simulated rig)"},
-      {"sim", thinslab::RunSim, "simulate a capture session (sim shadow-maps | laser | dot-scan | pattern)"},
-      {"calib", thinslab::RunCalib, "calibrate (calib camera | pose | dots | response | hdr | flat | gamma)"},
-      {"fit", thinslab::RunFit, "fit a model to a capture (fit tau | phase | dmf)"},
-      {"predict", thinslab::RunPredict, "what a fit (tau, phase, dmf) predicts for light states it was not fitted to"},
-      {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy"},
-      {"synth", thinslab::RunSynth, "synthesize contamination layers from measured prototypes"},
-      {"bench", thinslab::RunBench, "speed-against-accuracy sweep of the fit knobs (bench sweep)"},
-      {"charts", thinslab::RunCharts, "model-vs-Monte-Carlo charts of the optics models (docs/models)"},
+      {"help", RunHelp, "list the commands", nullptr},
+      {"version", RunVersion, "print version, git hash and the data folder", nullptr},
+      {"info", thinslab::RunInfo, "validate a capture session and summarise it", nullptr},
+      {"acquire", thinslab::RunAcquire, "run a capture session on a rig (default: the simulated rig)",
+       thinslab::AcquireSubcommands},
+      {"sim", thinslab::RunSim, "simulate a capture session", thinslab::SimSubcommands},
+      {"calib", thinslab::RunCalib, "calibrate the rig", thinslab::CalibSubcommands},
+      {"fit", thinslab::RunFit, "fit a model to a capture", thinslab::FitSubcommands},
+      {"predict", thinslab::RunPredict, "what a fit (tau, phase, dmf) predicts for light states it was not fitted to",
+       nullptr},
+      {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy", nullptr},
+      {"synth", thinslab::RunSynth, "synthesize contamination layers from measured prototypes", thinslab::SynthSubcommands},
+      {"bench", thinslab::RunBench, "speed against accuracy of the fit knobs", thinslab::BenchSubcommands},
+      {"charts", thinslab::RunCharts, "model-vs-Monte-Carlo charts of the optics models (docs/models)", nullptr},
+      {"completion", RunCompletion, "print the bash completion script (completion bash [FILE])", nullptr},
   };
   return commands;
 }
@@ -53,8 +62,38 @@ const std::vector<Command>& Commands() {
 int RunHelp(int, char**) {
   std::cout << "thinslab " << THINSLAB_VERSION_STRING
             << ": measurement and fitting for thin transparent samples\n\nusage: thinslab <command> [args]\n\n";
-  for (const auto& c : Commands()) std::cout << "  " << c.name << std::string(10 - std::strlen(c.name), ' ') << c.help << "\n";
-  std::cout << "\n'thinslab <command> --help' lists a command's options.\n";
+  for (const auto& c : Commands()) {
+    std::cout << "  " << c.name << std::string(12 - std::strlen(c.name), ' ') << c.help << "\n";
+    if (c.subcommands != nullptr) std::cout << thinslab::SubcommandLines("  " + std::string(c.name), c.subcommands());
+  }
+  std::cout << "\n'thinslab <command> [<subcommand>] --help' lists a command's options. Every command also takes\n"
+               "--config FILE (repeat a run from its options.ini), --quiet and --verbose (docs/cli.md).\n";
+  return 0;
+}
+
+int RunCompletion(int argc, char** argv) {
+  if (argc < 1 || std::string(argv[0]) != "bash" || argc > 2) {
+    std::cerr << "usage: thinslab completion bash [FILE]   (bash is the one shell supported)\n";
+    return argc == 0 ? 2 : 1;
+  }
+  std::vector<std::pair<std::string, std::vector<std::string>>> tree;
+  for (const auto& c : Commands()) {
+    std::vector<std::string> names;
+    if (c.subcommands != nullptr) {
+      for (const auto& s : c.subcommands()) names.push_back(s.name);
+    }
+    tree.emplace_back(c.name, names);
+  }
+  const std::string script = thinslab::BashCompletionScript(tree);
+  if (argc == 1) {
+    std::cout << script;
+    return 0;
+  }
+  const thinslab::Status status = thinslab::WriteFileAtomically(argv[1], script);
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
   return 0;
 }
 
@@ -73,6 +112,7 @@ int main(int argc, char** argv) {
     if (name != c.name) continue;
     const std::string command = "thinslab " + name + (argc > 2 && argv[2][0] != '-' ? std::string(" ") + argv[2] : "");
     try {
+      const thinslab::VerbosityScope verbosity;  // A command's --quiet ends with it.
       return c.run(argc - 2, argv + 2);
     } catch (const std::bad_alloc&) {
       std::cerr << "error: " << command << ": out of memory (the input needs more memory than this machine has)\n";

@@ -33,6 +33,9 @@ install(TARGETS ${thinslab_exported} EXPORT thinslabTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(TARGETS thinslab RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# The bash completion app/CMakeLists.txt generates after each build of the binary.
+install(FILES ${PROJECT_BINARY_DIR}/share/bash-completion/completions/thinslab
+        DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions)
 
 # Public headers: every stage but app/ (the CLI's own), without test helpers and without the
 # headers of back-ends this build left out.

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "thinslab/app/command_progress.h"
+#include "thinslab/app/verbosity.h"
 #include "thinslab/app/commands.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/session_io.h"
@@ -99,6 +100,7 @@ py::tuple RunCommand(const std::vector<std::string>& args, const py::object& pro
   std::string out, err;
   {
     CapturedStreams streams;
+    const VerbosityScope verbosity;  // quiet=True mutes this command only.
     try {
       code = fn(static_cast<int>(argv.size()), argv.data());
     } catch (...) {

@@ -19,7 +19,8 @@ thinslab=$prefix/bin/thinslab
 "$thinslab" version | grep -qx "data: $prefix/share/thinslab/data" ||
   fail "the installed CLI does not find $prefix/share/thinslab/data: $("$thinslab" version | tail -1)"
 for f in include/thinslab/pipeline/tau_pipeline.h include/thinslab/core/version.h include/thinslab/fit/cost_functions \
-         lib/cmake/thinslab/thinslabConfig.cmake share/thinslab/data/patterns/demo_contamination.exr share/doc/thinslab/format.md; do
+         lib/cmake/thinslab/thinslabConfig.cmake share/thinslab/data/patterns/demo_contamination.exr share/doc/thinslab/format.md \
+         share/bash-completion/completions/thinslab; do
   [ -e "$prefix/$f" ] || fail "not installed: $f"
 done
 if find "$prefix/include" -name '*test*' | grep -q .; then fail "test helpers installed under include/"; fi
