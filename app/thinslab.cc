@@ -18,6 +18,7 @@
 #include "thinslab/app/subcommands.h"
 #include "thinslab/app/verbosity.h"
 #include "thinslab/core/file.h"
+#include "thinslab/core/provenance.h"
 #include "thinslab/core/version.h"
 
 namespace {
@@ -108,6 +109,13 @@ int main(int argc, char** argv) {
     return 1;
   }
   const std::string name = argv[1];
+  std::string command_line = "thinslab";
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const bool plain = !arg.empty() && arg.find_first_of(" \t'\"\\$*?;&|<>()") == std::string::npos;
+    command_line += " " + (plain ? arg : "'" + arg + "'");
+  }
+  thinslab::SetCommandLine(command_line);
   for (const auto& c : Commands()) {
     if (name != c.name) continue;
     const std::string command = "thinslab " + name + (argc > 2 && argv[2][0] != '-' ? std::string(" ") + argv[2] : "");

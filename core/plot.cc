@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "thinslab/core/file.h"
 #include "thinslab/core/png_io.h"
@@ -193,7 +194,37 @@ Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panel
   }
   cv::putText(canvas, options.x_label, cv::Point(W / 2 - 60, H - 15), cv::FONT_HERSHEY_SIMPLEX, 0.5,
               cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  return WritePngAtomically(path, canvas);
+  THINSLAB_RETURN_IF_ERROR(WritePngAtomically(path, canvas));
+  return WriteFileAtomically(PlotCsvPath(path), PlotCsv(panels, options));
+}
+
+std::string PlotCsvPath(const std::string& png_path) {
+  const bool png = png_path.size() > 4 && png_path.compare(png_path.size() - 4, 4, ".png") == 0;
+  // "_data": a command's own CSV of the same name (knob_sweep_dmf.csv) is not replaced.
+  return (png ? png_path.substr(0, png_path.size() - 4) : png_path) + "_data.csv";
+}
+
+std::string PlotCsv(const std::vector<PlotPanel>& panels, const PlotOptions& options) {
+  std::ostringstream csv;
+  csv.precision(10);
+  csv << "# " << options.title << "; x: " << options.x_label << "\n";
+  csv << "panel,y_label,series,x,y,y_error\n";
+  auto quoted = [](const std::string& text) {
+    std::string q = "\"";
+    for (char c : text) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return q + "\"";
+  };
+  for (size_t p = 0; p < panels.size(); ++p) {
+    for (const PlotSeries& series : panels[p].series) {
+      for (size_t k = 0; k < series.x.size() && k < series.y.size(); ++k) {
+        csv << p << "," << quoted(panels[p].y_label) << "," << quoted(series.label) << "," << series.x[k] << ","
+            << series.y[k] << ",";
+        if (k < series.y_error.size()) csv << series.y_error[k];
+        csv << "\n";
+      }
+    }
+  }
+  return csv.str();
 }
 
 }  // namespace thinslab

@@ -35,6 +35,10 @@ struct PlotOptions {
   int height_px = 700;
 };
 
+// Writes the chart and, beside it, the data it shows as CSV (PlotCsvPath: x.png -> x_data.csv).
 Status WritePlotPng(const std::string& path, const std::vector<PlotPanel>& panels, const PlotOptions& options);
+std::string PlotCsvPath(const std::string& png_path);
+// One row per point: panel, y_label, series, x, y, y_error (empty when the series has none).
+std::string PlotCsv(const std::vector<PlotPanel>& panels, const PlotOptions& options);
 
 }  // namespace thinslab

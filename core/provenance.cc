@@ -8,6 +8,16 @@
 
 namespace thinslab {
 
+namespace {
+std::string& CommandLineStorage() {
+  static std::string command_line;
+  return command_line;
+}
+}  // namespace
+
+void SetCommandLine(const std::string& command_line) { CommandLineStorage() = command_line; }
+const std::string& CommandLine() { return CommandLineStorage(); }
+
 std::string OptionsDigest(const std::string& options_ini) { return "fnv1a64:" + Digest(options_ini); }
 
 void StampProvenance(const Provenance& provenance, Image* image) {
@@ -32,6 +42,7 @@ nlohmann::json ProvenanceJson(const Provenance& provenance) {
                       {"options_digest", OptionsDigest(provenance.options_ini)},
                       {"source_session", provenance.source}};
   if (!provenance.source_fit.empty()) j["source_fit"] = provenance.source_fit;
+  if (!CommandLine().empty()) j["command_line"] = CommandLine();
   return j;
 }
 

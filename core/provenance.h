@@ -23,6 +23,11 @@ struct Provenance {
   std::string options_ini;  // The effective options as written to options.ini ("" if the command has none).
 };
 
+// The command line of this process's command (main and Python's run_command set it; "" if
+// none), recorded as provenance "command_line" and shown in report.html.
+void SetCommandLine(const std::string& command_line);
+const std::string& CommandLine();
+
 // "fnv1a64:<16 hex digits>" of options.ini: equal digests, equal options.
 std::string OptionsDigest(const std::string& options_ini);
 

@@ -246,6 +246,12 @@ double FitSmithAlpha(const std::vector<Row>& rows, const std::vector<double>& lo
 
 }  // namespace
 
+std::vector<std::string> DmfStatusNames() {
+  std::vector<std::string> names;
+  for (int k = 0; k <= static_cast<int>(DmfStatus::kUnphysical); ++k) names.push_back(DmfStatusName(static_cast<DmfStatus>(k)));
+  return names;
+}
+
 const char* DmfStatusName(DmfStatus status) {
   switch (status) {
     case DmfStatus::kOk: return "ok";

@@ -69,6 +69,8 @@ enum class DmfStatus : uint8_t {
   kUnphysical = 8,
 };
 const char* DmfStatusName(DmfStatus status);
+// DmfStatusName of codes 0..kUnphysical, for the status legend.
+std::vector<std::string> DmfStatusNames();
 
 struct DmfPointFitOptions {
   int ndf_resolution = 32;         // N: N x N cells of the orthographic NDF grid (Dai Table 1: 32 x 32).

@@ -21,6 +21,10 @@
 
 namespace thinslab {
 
+std::vector<std::string> TauPixelStatusNames() {
+  return {"ok", "dark", "saturated", "outside", "clamped", "next_to_clamped", "mixed"};
+}
+
 bool TauFitOptions::Check(std::string* error) const {
   std::ostringstream msg;
   if (!(layer_albedo >= 0 && layer_albedo <= 1)) {

@@ -37,6 +37,8 @@ enum class TauPixelStatus : uint8_t {
   // transmission over very different thicknesses (an edge, texture the camera does not resolve).
   kMixed = 6,
 };
+// The names of codes 0..6, as summary.json's pixel counts and the status legend show them.
+std::vector<std::string> TauPixelStatusNames();
 
 struct TauFitOptions {
   // Model the scattered light (Eq. 6) instead of plain Eq. 7.

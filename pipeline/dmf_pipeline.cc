@@ -12,6 +12,7 @@
 
 #include "thinslab/pipeline/calibration_summary.h"
 #include "thinslab/pipeline/capture_reading.h"
+#include "thinslab/pipeline/fit_report.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/false_color.h"
 #include "thinslab/core/file.h"
@@ -238,18 +239,16 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
               << " dots placed from the monitor geometry (outside the camera's view, not found, or "
               << processing.dots_clipped << " cut by the image border), with the median L_q\n";
   }
+  std::vector<std::string> warnings;  // Printed now, kept in summary.json and report.html.
   if (processing.dot_radius_source == "default") {
-    std::cerr << "warning: " << AssumedDotRadiusWarning(JoinPath(session_dir, kSessionManifestName)) << "\n";
+    warnings.push_back(AssumedDotRadiusWarning(JoinPath(session_dir, kSessionManifestName)));
   }
   if (!processing.dot_distance_warning.empty()) {
-    std::cerr << "warning: " << processing.dot_geometry_source << ": " << processing.dot_distance_warning << "\n";
+    warnings.push_back(processing.dot_geometry_source + ": " + processing.dot_distance_warning);
   }
-  if (!processing.dark_level_warning.empty()) {
-    std::cerr << "warning: " << session_dir << "/" << processing.dark_level_warning << "\n";
-  }
-  if (!processing.exposure_warning.empty()) {
-    std::cerr << "warning: " << session_dir << ": " << processing.exposure_warning << "\n";
-  }
+  if (!processing.dark_level_warning.empty()) warnings.push_back(session_dir + "/" + processing.dark_level_warning);
+  if (!processing.exposure_warning.empty()) warnings.push_back(session_dir + ": " + processing.exposure_warning);
+  for (const std::string& w : warnings) std::cerr << "warning: " << w << "\n";
   DmfMaps maps;
   THINSLAB_RETURN_IF_ERROR(FitDualMicrofacetMaps(slices, run.fit, &maps));
   for (const auto& [x, y] : pixels) {
@@ -309,9 +308,11 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     Image undecided(maps.width, maps.height);
     for (int p = 0; p < maps.width * maps.height; ++p) undecided.data()[p] = ladder.image.data()[p * 5] < 0 ? 1.f : 0.f;
     FalseColorOptions color;
+    color.scale_kind = ColorScale::kCategorical;
     color.label = "model rung";
-    color.max_value = 5;
+    color.category_names = {"attenuator", "-", "-", "single_interface", "dmf_analytic", "dmf_tabulated"};
     color.scale = std::max(1, 256 / std::max(maps.width, maps.height));
+    color.pixel_pitch_m = slices.pitch_m;
     THINSLAB_RETURN_IF_ERROR(
         WriteFalseColorPng(JoinPath(out.path(), "ladder_rung_falsecolor.png"), ladder.image, 0, &undecided, color));
   }
@@ -332,14 +333,17 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     color.label = pic.name;
     color.max_value = pic.max;
     color.scale = std::max(1, 256 / std::max(maps.width, maps.height));
+    color.pixel_pitch_m = slices.pitch_m;
     THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), std::string(pic.name) + "_falsecolor.png"), image,
                                                 pic.channel, &unfitted, color));
   }
   {
     FalseColorOptions color;  // Every point has a status: nothing greyed out.
+    color.scale_kind = ColorScale::kCategorical;
     color.label = "status";
-    color.max_value = static_cast<double>(DmfStatus::kUnphysical);
+    color.category_names = DmfStatusNames();
     color.scale = std::max(1, 256 / std::max(maps.width, maps.height));
+    color.pixel_pitch_m = slices.pitch_m;
     THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "status_falsecolor.png"), image, 5, nullptr, color));
   }
   // NDF pictures (Dai Fig. 6): fitted on the left; the true face NDF on the right where the
@@ -395,6 +399,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["format"] = "thinslab-fit-summary";
   j["provenance"] = ProvenanceJson(provenance);
   j["model"] = "dai2009_dual_microfacet";
+  j["warnings"] = warnings;
   j["session"] = session_dir;
   j["grid"] = {maps.width, maps.height};
   j["dots"] = {processing.grid_nx, processing.grid_ny};
@@ -520,6 +525,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), j.dump(2) + "\n"));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), txt.str()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
+  THINSLAB_RETURN_IF_ERROR(WriteFitReport(out.path(), out_dir, "thinslab fit dmf: " + session_dir));
   THINSLAB_RETURN_IF_ERROR(out.Commit());
   *brief = txt.str();
   return Status::Ok();

@@ -10,13 +10,14 @@
 #include <iostream>
 #include <sstream>
 
-#include "thinslab/core/provenance.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/math.h"
 #include "thinslab/core/plot.h"
+#include "thinslab/core/provenance.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
+#include "thinslab/pipeline/fit_report.h"
 #include "thinslab/pipeline/calibration_summary.h"
 #include "thinslab/pipeline/capture_reading.h"
 #include "thinslab/pipeline/prediction_report.h"
@@ -227,6 +228,7 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   }
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), options_ini));
   THINSLAB_RETURN_IF_ERROR(WriteLobePlot(JoinPath(out.path(), "lobe_plot.png"), *rings, *summary));
+  THINSLAB_RETURN_IF_ERROR(WriteFitReport(out.path(), out_dir, "thinslab fit phase: " + session_dir));
   return out.Commit();
 }
 

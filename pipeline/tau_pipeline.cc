@@ -10,6 +10,7 @@
 
 #include "thinslab/pipeline/calibration_summary.h"
 #include "thinslab/pipeline/capture_reading.h"
+#include "thinslab/pipeline/fit_report.h"
 #include "thinslab/pipeline/layer_from_phase.h"
 #include "thinslab/pipeline/prediction_report.h"
 #include "thinslab/calib/shadow_map_preparation.h"
@@ -185,7 +186,15 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), "tau.exr"), tau, {"tau", {"status"}}, provenance));
 
   const Image status = tau.Channel(2);
+  FalseColorOptions status_legend;
+  status_legend.scale_kind = ColorScale::kCategorical;
+  status_legend.label = "status";
+  status_legend.category_names = TauPixelStatusNames();
+  status_legend.pixel_pitch_m = data.pixel_pitch_m;
+  THINSLAB_RETURN_IF_ERROR(
+      WriteFalseColorPng(JoinPath(out.path(), "status_falsecolor.png"), status, 0, nullptr, status_legend));
   FalseColorOptions color;
+  color.pixel_pitch_m = data.pixel_pitch_m;
   color.label = "tau";
   color.max_value = 1.5;
   const Image tau_only = tau.Channel(0);
@@ -216,10 +225,11 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
     for (int y = 0; y < tau.height(); ++y) {
       for (int x = 0; x < tau.width(); ++x) error.at(x, y) = tau.at(x, y, 0) - truth.at(x, y, tc);
     }
-    FalseColorOptions err_color;
+    FalseColorOptions err_color;  // Signed: a diverging scale, white at 0.
+    err_color.scale_kind = ColorScale::kDiverging;
     err_color.label = "tau err";
-    err_color.min_value = -0.1;
     err_color.max_value = 0.1;
+    err_color.pixel_pitch_m = data.pixel_pitch_m;
     THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "error_falsecolor.png"), error, 0, &status, err_color));
     return Status::Ok();
   };
@@ -233,6 +243,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
       std::cerr << "warning: the fit is written without the ground-truth comparison: " << compared.message() << "\n";
     }
   }
+  THINSLAB_RETURN_IF_ERROR(WriteFitReport(out.path(), out_dir, "thinslab fit tau: " + session_dir));
   return out.Commit();
 }
 

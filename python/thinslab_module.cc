@@ -22,6 +22,7 @@
 
 #include "thinslab/app/command_progress.h"
 #include "thinslab/app/verbosity.h"
+#include "thinslab/core/provenance.h"
 #include "thinslab/app/commands.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/session_io.h"
@@ -100,17 +101,22 @@ py::tuple RunCommand(const std::vector<std::string>& args, const py::object& pro
   std::string out, err;
   {
     CapturedStreams streams;
+    std::string command_line = "thinslab";  // As the provenance's command_line (python: same options).
+    for (const std::string& a : args) command_line += " " + a;
+    SetCommandLine(command_line);
     const VerbosityScope verbosity;  // quiet=True mutes this command only.
     try {
       code = fn(static_cast<int>(argv.size()), argv.data());
     } catch (...) {
       SetCommandProgress({});
+      SetCommandLine("");
       throw;
     }
     out = streams.out();
     err = streams.err();
   }
   SetCommandProgress({});
+  SetCommandLine("");
   if (raised) throw *raised;
   return py::make_tuple(code, out, err);
 }

@@ -36,6 +36,7 @@ packages=(
   python3-matplotlib
   python3-openimageio
   python3-opencv
+  chromium
   bc
 )
 

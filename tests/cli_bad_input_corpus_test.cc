@@ -506,7 +506,7 @@ std::vector<Case> Cases() {
       C("info_frame_is_directory", "shadow", BreakFrame("shadow", F::kDirectory), "info {in}", {"frames/cam0/shadow/"}),
       C("info_frame_symlink_outside", "shadow", BreakFrame("shadow", F::kSymlinkOutside), "info {in}",
         {"frames/cam0/shadow/"}),
-      C("info_unknown_option", "shadow", none, "info {in} --verbose", {"--verbose"}),
+      C("info_unknown_option", "shadow", none, "info {in} --verbosity", {"--verbosity"}),
 
       // ---- thinslab fit tau ----
       C("fit_tau_albedo_above_1", "shadow", none, "fit tau {in} --albedo 1.7", {"--albedo|layer_albedo"}),

@@ -168,7 +168,7 @@ TEST(CliBenchSweep, BadOptionsAreNamed) {
   EXPECT_NE(r.output.find("captures: exists"), std::string::npos) << r.output;
   r = RunThinslab("bench frobnicate");
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find("usage: thinslab bench sweep"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("thinslab bench sweep OUTDIR"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -99,6 +100,34 @@ void CheckOutputFolder(const std::string& folder, const std::string& expected_co
   }
 }
 
+// Issue #26 item 5: the folder's report.html, loaded by headless Chromium (Debian `chromium`),
+// shows every picture of the folder and raises no script error.
+void CheckReportInChromium(const std::string& folder) {
+  SCOPED_TRACE(folder + "/report.html");
+  int pictures = 0;
+  for (const auto& entry : fs::directory_iterator(folder)) pictures += entry.path().extension() == ".png";
+  ASSERT_GE(pictures, 1);
+  const std::string log = folder + "_chromium.log";
+  const std::string command = "chromium --headless --no-sandbox --disable-gpu --virtual-time-budget=10000 "
+                              "--enable-logging=stderr --v=0 --dump-dom 'file://" + folder + "/report.html' 2>'" + log + "'";
+  std::string dom;
+  FILE* pipe = popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  char buffer[65536];
+  while (fgets(buffer, sizeof(buffer), pipe) != nullptr) dom += buffer;
+  EXPECT_EQ(pclose(pipe), 0) << "chromium failed; its log: " << log;
+  const std::string shown = "data-images-shown=\"" + std::to_string(pictures) + "/" + std::to_string(pictures) + "\"";
+  EXPECT_NE(dom.find(shown), std::string::npos) << "expected " << shown << " in the DOM of " << folder << "/report.html";
+  std::string errors;
+  ASSERT_TRUE(ReadFileToString(log, &errors).ok());
+  EXPECT_EQ(errors.find("Uncaught"), std::string::npos) << errors;
+  std::string html;
+  ASSERT_TRUE(ReadFileToString(folder + "/report.html", &html).ok());
+  for (const char* part : {"<h2>Warnings</h2>", "<h2>Provenance</h2>", "--config", "options.ini"}) {
+    EXPECT_NE(html.find(part), std::string::npos) << part;
+  }
+}
+
 // Issue #26 item 2: `thinslab COMMAND --config FOLDER/options.ini` repeats the run exactly: the
 // same options.ini (so the same digest) and the same map, value for value.
 void RerunFromOptionsIni(const TempDir& dir, const std::string& command, const std::string& folder,
@@ -149,6 +178,14 @@ TEST(CliOutputFiles, EveryOutputFolderIsReadableByOtherProgramsAndCarriesItsProv
   std::string command, digest;
   CheckExr(shadow + "/calib/flat_field.exr", &command, &digest);
   EXPECT_EQ(command, "calib flat");
+
+  for (const std::string& folder : {shadow + "/fit/tau", lobe + "/fit/phase", dots + "/fit/dmf"}) {
+    CheckReportInChromium(folder);
+  }
+  // The command line that made the folder, in its provenance.
+  EXPECT_NE(ReadJsonFile(shadow + "/fit/tau/summary.json")["provenance"].value("command_line", "").find(
+                "thinslab fit tau " + shadow + " --split-half-check false"),
+            std::string::npos);
 
   RerunFromOptionsIni(dir, "fit tau", shadow + "/fit/tau", "tau.exr");
   RerunFromOptionsIni(dir, "fit dmf", dots + "/fit/dmf", "maps.exr");
