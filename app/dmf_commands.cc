@@ -84,11 +84,15 @@ int RunFitDmf(int argc, char** argv) {
                    "held-out (simplest rung within noise of the best on held-out dots) or bic (training data)");
   parser.AddBool("ladder-apply", &run.ladder_apply,
                  "maps.exr and the NDF atlas hold the chosen rung's model (false: the tabulated fit everywhere)");
+  std::string pixel;
+  parser.AddString("pixel", &pixel, "X,Y: print this map point's dots, alpha iterations and result (as pbrt's --pixel)");
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
     return 0;
   }
+  if (status.ok()) status = ParsePixelTrace(pixel, "--pixel", &run.fit.trace);
+  run.fit.trace.out = &std::cout;
   if (status.ok()) status = CheckDotRadiusOption(parser, run.processing.dot_radius_px);
   run.processing.pitch_m = pitch_mm * 1e-3;
   run.processing.glass_thickness_m = glass_thickness_mm < 0 ? -1 : glass_thickness_mm * 1e-3;

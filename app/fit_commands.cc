@@ -61,7 +61,11 @@ int RunFitTau(int argc, char** argv) {
   AddFitTauOptions(&parser, &run);
   parser.AddString("phase", &run.phase_dir,
                    "`fit phase` output folder of the same layer: its model ladder choice sets --refine and --g");
+  std::string pixel;
+  parser.AddString("pixel", &pixel, "X,Y: print this map pixel's data, iterations and result (as pbrt's --pixel)");
   Status status = parser.Parse(argc, argv);
+  if (status.ok()) status = ParsePixelTrace(pixel, "--pixel", &run.fit.trace);
+  run.fit.trace.out = &std::cout;
   if (parser.help_requested()) {
     std::cout << parser.Usage();
     return 0;

@@ -5,6 +5,7 @@
 
 #include <glog/logging.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <random>
@@ -301,6 +302,24 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     });
   }
   maps->timings.interpolation_s = Seconds(t);
+  if (options.trace.enabled()) {
+    // The traced point fitted once more, alone, with its trace (the same fit as in the maps
+    // when it was fitted directly; the maps' values are printed after).
+    THINSLAB_RETURN_IF_ERROR(CheckPixelTraceInside(options.trace, slices.width, slices.height, "--pixel"));
+    const int p = options.trace.y * slices.width + options.trace.x;
+    std::ostream& out = *options.trace.out;
+    const bool direct_fit = std::find(direct.begin(), direct.end(), p) != direct.end();
+    out << "point (" << options.trace.x << ", " << options.trace.y << ")"
+        << (direct_fit ? ": fitted directly (Dai Eqs. 14-19)\n"
+                       : ": not fitted directly in the maps (clustered run: interpolated, Eqs. 20-22; or no lobe); its own fit:\n");
+    DmfPointFitOptions traced = options.point;
+    traced.trace = &out;
+    const DmfPointFit alone = FitDualMicrofacetPoint(slices.Slice(p), grid, traced);
+    const DmfPointFit& in_maps = maps->fits[p];
+    out << "  alone: status " << DmfStatusName(alone.status) << "; in the maps: status " << DmfStatusName(in_maps.status)
+        << ", top_face_weight " << in_maps.alpha << ", smith_alpha " << in_maps.smith_alpha << ", k_s " << in_maps.k_s
+        << "\n";
+  }
   maps->timings.total_s = Seconds(start);
   return Status::Ok();
 }

@@ -12,10 +12,11 @@
 #include <vector>
 
 #include "thinslab/core/image.h"
+#include "thinslab/core/parallel.h"
+#include "thinslab/core/pixel_trace.h"
 #include "thinslab/core/status.h"
 #include "thinslab/fit/dmf_clustering.h"
 #include "thinslab/fit/dmf_point_fit.h"
-#include "thinslab/core/parallel.h"
 
 namespace thinslab {
 
@@ -93,6 +94,8 @@ struct DmfMapFitOptions {
   int num_threads = DefaultThreadCount();
   // Reports the per-point fits; returning false cancels the fit (core/progress.h).
   ProgressCallback progress;
+  // One map point's measurements, iterations and result (`fit dmf --pixel X,Y`).
+  PixelTrace trace;
   bool Check(std::string* error) const;
 };
 

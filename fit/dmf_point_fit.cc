@@ -8,6 +8,7 @@
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <sstream>
 
 #include "thinslab/fit/small_dense_solve.h"
@@ -418,6 +419,16 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   }
   fit.num_used = static_cast<int>(rows.size());
   const int core = static_cast<int>(std::count_if(rows.begin(), rows.end(), [](const Row& r) { return r.in_core; }));
+  std::ostream* trace = options.trace;
+  if (trace != nullptr) {
+    *trace << std::setprecision(6) << "  " << slice.value.size() << " dots, rho_d " << slice.rho_d
+           << " (Eq. 14), lobe peak " << peak << "; " << usable.size() << " usable training dots, " << rows.size()
+           << " in Eq. 16 (" << core << " in the lobe core, above " << options.alpha_lobe_fraction << " of the peak)\n";
+    for (const Row& r : rows) {
+      *trace << "    i = (" << r.i.x() << ", " << r.i.y() << ", " << r.i.z() << "): R - rho_d = " << std::exp(r.log_value)
+             << (r.in_core ? " (core)" : "") << "\n";
+    }
+  }
   if (static_cast<int>(rows.size()) < options.min_measurements || core < options.min_core_measurements) {
     fit.status = usable.empty() ? DmfStatus::kNoLobe : DmfStatus::kSpecular;
     return fit;
@@ -437,6 +448,10 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
     const double next = GoldenSectionAlpha(rows, log_d, measured_mean, options.golden_tolerance);
     fit.alpha_iterations = it + 1;
     const double change = std::abs(next - alpha);
+    if (trace != nullptr) {
+      *trace << "  iteration " << it + 1 << ": NDF solved (Eqs. 15-17) at alpha " << alpha
+             << ", golden-section alpha (Eq. 18) -> " << next << " (change " << change << ")\n";
+    }
     alpha = next;
     if (change < options.alpha_tolerance) {
       converged = true;
@@ -469,6 +484,12 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   }
   fit.alpha = alpha;
   fit.transmittance = DirectionalTransmittance(fit, grid, options.eta, slice.o);
+  if (trace != nullptr) {
+    *trace << "  result: top_face_weight (alpha) " << fit.alpha << ", smith_alpha " << fit.smith_alpha << ", k_s "
+           << fit.k_s << ", log RMS residual " << fit.log_rms_residual << ", measured NDF fraction "
+           << fit.measured_ndf_fraction << ", transmittance " << fit.transmittance << (converged ? "" : " (alpha not converged)")
+           << "\n";
+  }
   if (!converged) {
     fit.status = DmfStatus::kNotConverged;
   } else if (options.Undersampled(fit.measured_ndf_fraction, slice)) {

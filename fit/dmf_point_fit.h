@@ -25,6 +25,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -107,6 +108,8 @@ struct DmfPointFitOptions {
   // transmittance over that of the unit model, about 1 for a clean non-absorbing slab (0.75-1.3
   // measured on the simulated rig); 4 leaves room for rho_d and calibration errors.
   double max_k_s = 4;
+  // The point's measurements, alpha iterations and result (`fit dmf --pixel`); nullptr: none.
+  std::ostream* trace = nullptr;
   bool Check(std::string* error) const;
   // Status kUnphysical: transmits more than max_transmittance, or k_s above max_k_s.
   bool Unphysical(double transmittance, double k_s) const { return transmittance > max_transmittance || k_s > max_k_s; }

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <iomanip>
 #include <memory>
 #include <sstream>
 #include <vector>
@@ -198,6 +199,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   summary->height = h;
   summary->pixels_total = static_cast<int64_t>(n);
   if (n == 0) return Status::Error("FitTau: empty shadow map");
+  THINSLAB_RETURN_IF_ERROR(CheckPixelTraceInside(options.trace, w, h, "--pixel (TauFitOptions::trace)"));
 
   // Masks and the reference.
   std::vector<uint8_t> status(n, static_cast<uint8_t>(TauPixelStatus::kOk));
@@ -274,6 +276,18 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   }
   const auto t_plain = Clock::now();
   summary->plain_s = Seconds(t_start, t_plain);
+  const bool tracing = options.trace.enabled() && options.trace.x < w && options.trace.y < h;
+  const size_t traced = tracing ? static_cast<size_t>(options.trace.y) * w + options.trace.x : 0;
+  std::ostream* trace = options.trace.out;
+  if (tracing) {
+    const size_t i = traced;
+    *trace << std::setprecision(9) << "pixel (" << options.trace.x << ", " << options.trace.y
+           << "): shadow " << data.shadow.data()[i] << " DN/us (variance "
+           << (data.shadow_variance.empty() ? 0.f : data.shadow_variance.data()[i]) << "), clean reference "
+           << reference.data()[i] << " DN/us (" << options.reference << ", median " << ref_median
+           << ")\n  ratio m = " << m[i] << " +- " << sigma_m[i] << ", status after masking "
+           << TauPixelStatusNames()[status[i]] << ", tau_eq7 = -ln m = " << tau_plain.data()[i] << " (Gu Eq. 7)\n";
+  }
 
   std::vector<double> tau(n, 0.0);
   for (size_t i = 0; i < n; ++i) tau[i] = tau_plain.data()[i];
@@ -367,6 +381,12 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       double max_update = 0;
       for (size_t i = 0; i < n; ++i) {
         if (status[i] == 0) max_update = std::max(max_update, std::abs(next[i] - tau[i]));
+      }
+      if (tracing) {
+        *trace << "  iteration " << outer + 1 << (polishing ? " (Ceres, smoothness prior)" : "")
+               << ": scattered S/E0 = " << scattered[traced] << " (Gu Eq. 6), unscattered m - S = "
+               << unscattered[traced] << ", tau " << tau[traced] << " -> " << next[traced]
+               << " (largest update over the map " << max_update << ")\n";
       }
       tau = next;
       summary->outer_iterations = outer + 1;
@@ -541,6 +561,13 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     maps->tau.at(x, y, 1) = static_cast<float>(plain);
     maps->tau.at(x, y, 2) = static_cast<float>(code);
     maps->tau.at(x, y, 3) = static_cast<float>(sigma);
+  }
+  if (tracing) {
+    const int x = options.trace.x, y = options.trace.y;
+    *trace << "  result: tau = " << maps->tau.at(x, y, 0) << " +- " << maps->tau.at(x, y, 3) << " (noise "
+           << sigma_noise_of[traced] << ", model " << sigma_model_of[traced] << ", resolution "
+           << sigma_resolution_of[traced] << "), tau_eq7 = " << maps->tau.at(x, y, 1) << ", status "
+           << TauPixelStatusNames()[final_status[traced]] << "\n";
   }
   const int64_t measured =
       summary->pixels_fitted + summary->pixels_clamped + summary->pixels_next_to_clamped + summary->pixels_mixed;

@@ -19,6 +19,7 @@
 #include "thinslab/core/image.h"
 #include "thinslab/core/status.h"
 #include "thinslab/core/parallel.h"
+#include "thinslab/core/pixel_trace.h"
 
 namespace thinslab {
 
@@ -74,6 +75,8 @@ struct TauFitOptions {
   int num_threads = DefaultThreadCount();
   // Reports the scattered-light iterations; returning false cancels the fit (core/progress.h).
   ProgressCallback progress;
+  // One map pixel's data, iterations and result (`fit tau --pixel X,Y`).
+  PixelTrace trace;
 
   bool Check(std::string* error) const;
 };

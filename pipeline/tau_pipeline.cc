@@ -129,6 +129,8 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   } else {
     std::vector<TauMaps> half_maps(2);
     std::string failed;
+    TauFitOptions half_fit = fit;
+    half_fit.trace = PixelTrace();  // --pixel follows the fit of all frames only.
     for (int k = 0; k < 2 && failed.empty(); ++k) {
       RectifiedShadowMaps half = data;
       half.halves.clear();
@@ -137,7 +139,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
       half.reference = data.halves[k].reference;
       half.reference_variance = data.halves[k].reference_variance;
       TauFitSummary half_summary;
-      const Status fitted = FitTau(fit, half, &half_maps[k], &half_summary);
+      const Status fitted = FitTau(half_fit, half, &half_maps[k], &half_summary);
       if (!fitted.ok()) failed = (k == 0 ? "even frames: " : "odd frames: ") + fitted.message();
     }
     if (!failed.empty()) {

@@ -187,6 +187,32 @@ TEST(CliOutputFiles, EveryOutputFolderIsReadableByOtherProgramsAndCarriesItsProv
                 "thinslab fit tau " + shadow + " --split-half-check false"),
             std::string::npos);
 
+  // Issue #26 item 6: --pixel X,Y follows one map point through the fit, ending in the value
+  // the map holds.
+  const RunResult traced = RunThinslabOk("fit tau " + shadow + " --pixel 7,5 --out " + (dir / "traced"));
+  Image traced_map;
+  ASSERT_TRUE(ReadExr(dir / "traced/tau.exr", &traced_map).ok());
+  const size_t result = traced.output.find("  result: tau = ");
+  ASSERT_NE(result, std::string::npos) << traced.output;
+  EXPECT_NE(traced.output.find("pixel (7, 5): shadow "), std::string::npos);
+  EXPECT_NE(traced.output.find("  iteration 1: scattered S/E0 = "), std::string::npos);
+  EXPECT_EQ(traced.output.find("pixel (7, 5)", traced.output.find("pixel (7, 5)") + 1), std::string::npos)
+      << "traced more than once (the split-half fits must not trace)";
+  const double printed = std::stod(traced.output.substr(result + 16));
+  EXPECT_NEAR(printed, traced_map.at(7, 5, traced_map.ChannelIndex("tau")), 1e-6);
+  const RunResult traced_dmf = RunThinslabOk("fit dmf " + dots + " --pitch-mm 4 --pixel 2,3 --out " + (dir / "traced_dmf"));
+  Image dmf_map;
+  ASSERT_TRUE(ReadExr(dir / "traced_dmf/maps.exr", &dmf_map).ok());
+  const size_t weight = traced_dmf.output.find(", top_face_weight ", traced_dmf.output.find("in the maps: status"));
+  ASSERT_NE(weight, std::string::npos) << traced_dmf.output;
+  EXPECT_NE(traced_dmf.output.find("point (2, 3)"), std::string::npos);
+  EXPECT_NEAR(std::stod(traced_dmf.output.substr(weight + 18)), dmf_map.at(2, 3, dmf_map.ChannelIndex("top_face_weight")),
+              1e-5);
+  const RunResult outside = RunThinslab("fit tau " + shadow + " --pixel 7000,5 --out " + (dir / "traced_outside"));
+  EXPECT_EQ(outside.exit_code, 1);
+  EXPECT_NE(outside.output.find("--pixel (TauFitOptions::trace) 7000,5 is outside the"), std::string::npos)
+      << outside.output;
+
   RerunFromOptionsIni(dir, "fit tau", shadow + "/fit/tau", "tau.exr");
   RerunFromOptionsIni(dir, "fit dmf", dots + "/fit/dmf", "maps.exr");
   RerunFromOptionsIni(dir, "calib hdr", shadow + "/calib/hdr", "reference_clean.exr");
