@@ -8,6 +8,7 @@
 // docs/format.md ("Radiometric calibration files") describes every file.
 #include <iostream>
 
+#include "thinslab/app/command_progress.h"
 #include "thinslab/app/capture_options.h"
 #include "thinslab/app/commands.h"
 #include "thinslab/app/option_parser.h"
@@ -78,6 +79,7 @@ int RunCalibHdr(int argc, char** argv) {
     return 0;
   }
   run.options_ini = parser.ToIni();
+  run.progress = CommandProgress();
   if (status.ok()) status = CalibrateHdr(run, std::cout);
   return status.ok() ? 0 : Fail(status);
 }

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include <iostream>
 
+#include "thinslab/app/command_progress.h"
 #include "thinslab/app/commands.h"
 #include "thinslab/app/subcommands.h"
 #include "thinslab/app/data_directory.h"
@@ -186,6 +187,7 @@ int RunSimDotScan(int argc, char** argv) {
   options.sample.thickness_m = glass_thickness_mm * 1e-3;
   SyntheticDotScanResult result;
   NewFolderGuard new_output(out_dir);
+  options.progress = CommandProgress();
   if (status.ok()) status = SynthesizeDotScanSession(options, out_dir, &result);
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";

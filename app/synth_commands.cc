@@ -22,6 +22,7 @@
 #include "thinslab/synth/layer_synthesis.h"
 #include "thinslab/synth/pane_preview.h"
 #include "thinslab/synth/prototype_library.h"
+#include "thinslab/pipeline/folder_report.h"
 
 namespace thinslab {
 namespace {
@@ -261,6 +262,7 @@ int RunLayer(int argc, char** argv) {
       status = WriteFileAtomically(JoinPath(out.path(), "summary.json"), summary_json.dump(2) + "\n");
     }
     if (status.ok()) status = WriteFileAtomically(JoinPath(out.path(), "options.ini"), ini);
+    if (status.ok()) status = WriteFolderReport(out.path(), out_dir, "thinslab synth layer: " + layers_from);
     if (status.ok()) status = out.Commit();
   }
   if (!status.ok()) return Fail(status);

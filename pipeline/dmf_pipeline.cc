@@ -12,7 +12,7 @@
 
 #include "thinslab/pipeline/calibration_summary.h"
 #include "thinslab/pipeline/capture_reading.h"
-#include "thinslab/pipeline/fit_report.h"
+#include "thinslab/pipeline/folder_report.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/false_color.h"
 #include "thinslab/core/file.h"
@@ -525,7 +525,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), j.dump(2) + "\n"));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), txt.str()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
-  THINSLAB_RETURN_IF_ERROR(WriteFitReport(out.path(), out_dir, "thinslab fit dmf: " + session_dir));
+  THINSLAB_RETURN_IF_ERROR(WriteFolderReport(out.path(), out_dir, "thinslab fit dmf: " + session_dir));
   THINSLAB_RETURN_IF_ERROR(out.Commit());
   *brief = txt.str();
   return Status::Ok();

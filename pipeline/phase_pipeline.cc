@@ -17,7 +17,7 @@
 #include "thinslab/core/provenance.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
-#include "thinslab/pipeline/fit_report.h"
+#include "thinslab/pipeline/folder_report.h"
 #include "thinslab/pipeline/calibration_summary.h"
 #include "thinslab/pipeline/capture_reading.h"
 #include "thinslab/pipeline/prediction_report.h"
@@ -228,7 +228,7 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
   }
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), options_ini));
   THINSLAB_RETURN_IF_ERROR(WriteLobePlot(JoinPath(out.path(), "lobe_plot.png"), *rings, *summary));
-  THINSLAB_RETURN_IF_ERROR(WriteFitReport(out.path(), out_dir, "thinslab fit phase: " + session_dir));
+  THINSLAB_RETURN_IF_ERROR(WriteFolderReport(out.path(), out_dir, "thinslab fit phase: " + session_dir));
   return out.Commit();
 }
 

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "thinslab/pipeline/capture_reading.h"
+#include "thinslab/pipeline/folder_report.h"
 #include "thinslab/pipeline/prediction_report.h"
 #include "thinslab/calib/frame_noise.h"
 #include "thinslab/calib/hdr_merge.h"
@@ -181,6 +182,7 @@ Status PredictCapture(const PredictCaptureRun& run, std::ostream& log) {
   j["dots"] = entries;
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), j.dump(2) + "\n"));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), txt.str()));
+  THINSLAB_RETURN_IF_ERROR(WriteFolderReport(out.path(), out_dir, "thinslab predict: " + session_dir));
   THINSLAB_RETURN_IF_ERROR(out.Commit());
   log << txt.str() << "wrote " << out_dir << "\n";
   return Status::Ok();

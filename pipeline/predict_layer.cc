@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "thinslab/pipeline/layer_from_phase.h"
+#include "thinslab/pipeline/folder_report.h"
 #include "thinslab/pipeline/prediction_report.h"
 #include "thinslab/calib/board_rectification.h"
 #include "thinslab/calib/laser_lobe_preparation.h"
@@ -265,6 +266,7 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
       << ShadowRegionsText(camera_regions);
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.json"), j.dump(2) + "\n"));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.txt"), txt.str()));
+  THINSLAB_RETURN_IF_ERROR(WriteFolderReport(out->path(), run.out_dir, "thinslab predict: " + run.session_dir));
   THINSLAB_RETURN_IF_ERROR(out->Commit());
   std::cout << txt.str() << "wrote " << run.out_dir << "\n";
   return Status::Ok();
@@ -329,6 +331,7 @@ Status PredictLobeFromPhase(const PredictRun& run, const Session& session, Stage
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "lobe_rings.csv"), csv.str()));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.json"), j.dump(2) + "\n"));
   THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out->path(), "summary.txt"), txt.str()));
+  THINSLAB_RETURN_IF_ERROR(WriteFolderReport(out->path(), run.out_dir, "thinslab predict: " + run.session_dir));
   THINSLAB_RETURN_IF_ERROR(out->Commit());
   std::cout << txt.str() << "wrote " << run.out_dir << "\n";
   return Status::Ok();

@@ -24,6 +24,7 @@
 #include "thinslab/core/version.h"
 #include "thinslab/pipeline/calibration_summary.h"
 #include "thinslab/pipeline/capture_reading.h"
+#include "thinslab/pipeline/folder_report.h"
 
 namespace thinslab {
 namespace {
@@ -281,7 +282,9 @@ Status CalibrateHdr(const CalibHdrRun& run, std::ostream& log) {
   status = ResolveFrameNoise(session_dir, session, *camera, &noise);
   if (!status.ok()) return status;
   summary["noise"] = noise.ToJson();
+  ProgressTracker progress(run.progress, "calib hdr: groups merged", static_cast<int64_t>(groups.size()));
   for (const Group& group : groups) {
+    if (!progress.Report(&group - groups.data())) return Status::Error("calib hdr: cancelled");
     HdrImage hdr;
     SessionMergeInfo info;
     status = MergeSessionBracket(session_dir, session, *camera, group.frames, darks,
@@ -325,8 +328,10 @@ Status CalibrateHdr(const CalibHdrRun& run, std::ostream& log) {
                 << "measured ones)\n";
     }
   }
+  progress.Report(static_cast<int64_t>(groups.size()));
   status = WriteFileAtomically(JoinPath(staged.path(), "summary.json"), summary.dump(2) + "\n");
   if (status.ok()) status = WriteFileAtomically(JoinPath(staged.path(), "options.ini"), options_ini);
+  if (status.ok()) status = WriteFolderReport(staged.path(), out, "thinslab calib hdr: " + session_dir);
   if (status.ok()) status = staged.Commit();
   if (!status.ok()) return status;
   log << "wrote " << out << "\n";

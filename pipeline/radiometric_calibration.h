@@ -11,6 +11,7 @@
 #include "thinslab/calib/flat_field.h"
 #include "thinslab/calib/hdr_merge.h"
 #include "thinslab/calib/response_recovery.h"
+#include "thinslab/core/progress.h"
 #include "thinslab/core/status.h"
 
 namespace thinslab {
@@ -42,6 +43,7 @@ struct CalibHdrRun {
   HdrMergeOptions options;
   bool allow_incomplete_capture = false;
   std::string options_ini;                   // Written as options.ini.
+  ProgressCallback progress;                 // Groups merged; false cancels (core/progress.h).
 };
 Status CalibrateHdr(const CalibHdrRun& run, std::ostream& log);
 

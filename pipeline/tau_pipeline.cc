@@ -10,7 +10,7 @@
 
 #include "thinslab/pipeline/calibration_summary.h"
 #include "thinslab/pipeline/capture_reading.h"
-#include "thinslab/pipeline/fit_report.h"
+#include "thinslab/pipeline/folder_report.h"
 #include "thinslab/pipeline/layer_from_phase.h"
 #include "thinslab/pipeline/prediction_report.h"
 #include "thinslab/calib/shadow_map_preparation.h"
@@ -245,7 +245,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
       std::cerr << "warning: the fit is written without the ground-truth comparison: " << compared.message() << "\n";
     }
   }
-  THINSLAB_RETURN_IF_ERROR(WriteFitReport(out.path(), out_dir, "thinslab fit tau: " + session_dir));
+  THINSLAB_RETURN_IF_ERROR(WriteFolderReport(out.path(), out_dir, "thinslab fit tau: " + session_dir));
   return out.Commit();
 }
 

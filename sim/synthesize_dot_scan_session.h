@@ -18,6 +18,7 @@
 #include <string>
 
 #include "thinslab/acquire/dot_scan_session.h"
+#include "thinslab/core/progress.h"
 #include "thinslab/core/session.h"
 #include "thinslab/core/status.h"
 #include "thinslab/sim/sim_dot_monitor.h"
@@ -39,6 +40,8 @@ struct SyntheticDotScanOptions {
   double truth_pitch_m = 0.25e-3;  // Pitch of regions.exr and of the manifest's sample grid.
   int validation_dots = 0;  // DotScanValidationDots of the grid, captured as validation frames.
   std::string name = "sim_dot_scan";
+  // Reports the frames rendered of those planned; returning false cancels (core/progress.h).
+  ProgressCallback progress;
 
   Status Check() const;  // Errors name the struct and field.
 };

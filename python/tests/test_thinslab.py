@@ -157,6 +157,22 @@ def test_progress_reports_and_cancels(shadow_capture, tmp_path):
     assert not os.path.exists(tmp_path / "raised")
 
 
+def test_progress_of_simulations_and_calibrations(shadow_capture, tmp_path):
+    """Issue #26 item 4: the dot-scan simulation and the HDR merge report progress too."""
+    updates = []
+    thinslab.run("sim", "dot-scan", str(tmp_path / "dots"), grid_nx=4, grid_ny=4, photons_k=2, camera_width_px=120,
+                 camera_height_px=90, table_bins=16, progress=lambda u: updates.append(u) or True)
+    frames = [u for u in updates if u["stage"] == "sim dot-scan: frames rendered"]
+    assert frames and frames[-1]["done"] == frames[-1]["total"] >= 16
+    with pytest.raises(thinslab.ThinslabError, match="cancelled"):
+        thinslab.run("sim", "dot-scan", str(tmp_path / "dots_cancelled"), grid_nx=4, grid_ny=4, photons_k=2,
+                     camera_width_px=120, camera_height_px=90, table_bins=16, progress=lambda u: u["done"] < 3)
+    updates.clear()
+    thinslab.run("calib", "hdr", shadow_capture, out=str(tmp_path / "hdr"), progress=lambda u: updates.append(u) or True)
+    assert updates[-1]["stage"] == "calib hdr: groups merged"
+    assert updates[-1]["done"] == updates[-1]["total"] >= 2
+
+
 def test_outputs_read_with_openimageio_and_opencv(shadow_capture, tmp_path):
     """Issue #26 item 1: tau.exr as a user's program reads it (OpenImageIO lists layers and the
     integer status; cv::imread returns the primary map), and read_exr's typed attributes."""

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "thinslab/pipeline/fit_report.h"
+#include "thinslab/pipeline/folder_report.h"
 
 #include <algorithm>
 #include <filesystem>
@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "thinslab/core/file.h"
+#include "thinslab/core/plot.h"
 
 namespace thinslab {
 namespace {
@@ -59,7 +60,7 @@ void FigureRows(const nlohmann::json& j, const std::string& prefix, int depth, s
 
 }  // namespace
 
-Status WriteFitReport(const std::string& folder, const std::string& final_folder, const std::string& title) {
+Status WriteFolderReport(const std::string& folder, const std::string& final_folder, const std::string& title) {
   nlohmann::json summary = nlohmann::json::object();
   std::string text;
   if (ReadFileToString(JoinPath(folder, "summary.json"), &text).ok()) {
@@ -72,21 +73,24 @@ Status WriteFitReport(const std::string& folder, const std::string& final_folder
   const bool has_options = ReadFileToString(JoinPath(folder, "options.ini"), &options_ini).ok();
   std::vector<std::string> maps, charts, files;
   for (const auto& entry : std::filesystem::directory_iterator(folder)) {
-    const std::string name = entry.path().filename().string();
-    files.push_back(name);
-    if (entry.path().extension() != ".png") continue;
-    (name.find("_falsecolor") != std::string::npos ? maps : charts).push_back(name);
+    files.push_back(entry.path().filename().string());
+  }
+  for (const std::string& name : files) {
+    if (name.size() < 4 || name.compare(name.size() - 4, 4, ".png") != 0) continue;
+    // A chart has its data beside it (core/plot.h); other pictures are maps and previews.
+    const bool chart = std::find(files.begin(), files.end(), PlotCsvPath(name)) != files.end();
+    (chart ? charts : maps).push_back(name);
   }
   // The fitted maps first, then the status and the comparisons with a simulated capture's truth.
   auto secondary = [](const std::string& name) {
     return name.find("status") != std::string::npos || name.find("truth") != std::string::npos ||
            name.find("error") != std::string::npos;
   };
+  std::sort(files.begin(), files.end());
   std::sort(maps.begin(), maps.end(), [&](const std::string& a, const std::string& b) {
     return std::make_pair(secondary(a), a) < std::make_pair(secondary(b), b);
   });
   std::sort(charts.begin(), charts.end());
-  std::sort(files.begin(), files.end());
 
   std::ostringstream html;
   html << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" << Escape(title)
@@ -115,7 +119,7 @@ Status WriteFitReport(const std::string& folder, const std::string& final_folder
     for (const std::string& name : names) {
       std::string bytes;
       THINSLAB_RETURN_IF_ERROR(ReadFileToString(JoinPath(folder, name), &bytes));
-      const std::string csv = name.substr(0, name.size() - 4) + "_data.csv";  // core/plot.h PlotCsvPath.
+      const std::string csv = PlotCsvPath(name);
       html << "<figure><img src=\"data:image/png;base64," << Base64(bytes) << "\" alt=\"" << Escape(name)
            << "\"><figcaption>" << Escape(name)
            << (std::find(files.begin(), files.end(), csv) != files.end() ? " (data: " + Escape(csv) + ")" : "")
@@ -123,7 +127,7 @@ Status WriteFitReport(const std::string& folder, const std::string& final_folder
     }
     return Status::Ok();
   };
-  html << "<h2>Maps</h2>\n";
+  html << "<h2>Maps and pictures</h2>\n";
   if (maps.empty()) html << "<p>None.</p>\n";
   THINSLAB_RETURN_IF_ERROR(figures(maps));
   html << "<h2>Charts</h2>\n";
@@ -141,7 +145,7 @@ Status WriteFitReport(const std::string& folder, const std::string& final_folder
          << "</code></td></tr>\n";
   }
   html << "</table>\n";
-  if (provenance.contains("command")) {
+  if (provenance.contains("command") && has_options) {
     html << "<p>Repeat this run exactly: <code>thinslab " << Escape(provenance["command"].get<std::string>())
          << " --config " << Escape(JoinPath(final_folder, "options.ini")) << "</code></p>\n";
   }

@@ -14,6 +14,6 @@ namespace thinslab {
 
 // `folder`: where the files are now (a staging folder); `final_folder`: where they will be (the
 // paths the page shows). Writes folder/report.html atomically.
-Status WriteFitReport(const std::string& folder, const std::string& final_folder, const std::string& title);
+Status WriteFolderReport(const std::string& folder, const std::string& final_folder, const std::string& title);
 
 }  // namespace thinslab
