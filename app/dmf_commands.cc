@@ -52,10 +52,14 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddDouble("min-measured-ndf-fraction", &run.fit.point.min_measured_ndf_fraction,
                    "below this measured share of the fitted NDF: status undersampled");
   parser.AddDouble("max-edge-fraction", &run.fit.point.max_edge_fraction,
-                   "lobe above this fraction of its peak at the dot grid's border: status undersampled");
+                   "lobe above this fraction of its peak on two opposite borders of the dot grid: status undersampled");
+  parser.AddDouble("max-alpha-residual", &run.fit.point.max_alpha_residual,
+                   "Eq. 18 still moving alpha by more than this at the result: status not_converged");
   parser.AddDouble("max-transmittance", &run.fit.point.max_transmittance,
                    "above this directional transmittance of the fit: status unphysical");
   parser.AddDouble("max-k-s", &run.fit.point.max_k_s, "above this k_s: status unphysical");
+  parser.AddDouble("min-unit-transmittance", &run.fit.point.min_unit_transmittance,
+                   "below this directional transmittance per unit k_s: status unphysical");
   parser.AddDouble("cluster-fraction", &run.cluster_fraction, "k-means representatives per point; 0 = fit every point");
   parser.AddInt("neighbors", &run.fit.clustering.num_neighbors, "representatives per interpolated point (Eq. 20)");
   parser.AddBool("hold-out", &run.processing.hold_out, "hold out dots from the fit (--hold-out-pattern)");

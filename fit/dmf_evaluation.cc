@@ -115,11 +115,16 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
       k_s.push_back(f.k_s);
       rho_d.push_back(f.rho_d);
       if (const DmfTruthFace* face = r.SingleRoughFace()) ndf.push_back(NdfRelativeL2(f, grid, *face));
+      bool correct = f.k_s * kDmfCorrectKsRatio >= r.k_s && f.k_s <= kDmfCorrectKsRatio * r.k_s;
+      if (const DmfTruthFace* face = r.SingleRoughFace()) correct = correct && (f.alpha > 0.5) == (face == &r.top);
       if (held_out) {
         const double e = DmfHeldOutError(slices, maps, p);
         if (e >= 0) held.push_back(e);
         if (ok && e > held_out_tolerance) ++a.silent_wrong;
+        correct = correct && e <= held_out_tolerance;
       }
+      ++(correct ? a.correct : a.wrong);
+      if (!ok) ++(correct ? a.false_alarms : a.detected);
     }
     a.median_alpha = Median(alpha);
     a.median_ndf_l2 = Median(ndf);
@@ -136,7 +141,10 @@ std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
   j["format"] = "thinslab-dmf-comparison";
   j["note"] = "medians over points at least one grid pitch inside each region; -1 = not applicable";
   for (const DmfRegionAccuracy& a : accuracy) {
+    nlohmann::json statuses = nlohmann::json::object();
+    for (const auto& [code, n] : a.statuses) statuses[DmfStatusName(static_cast<DmfStatus>(code))] = n;
     j["regions"].push_back({{"name", a.name},
+                            {"statuses", statuses},
                             {"points", a.points},
                             {"fitted", a.fitted},
                             {"median_alpha", a.median_alpha},
@@ -148,7 +156,11 @@ std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
                             {"true_rho_d", a.true_rho_d},
                             {"ok", a.ok},
                             {"flagged", a.flagged},
-                            {"ok_with_held_out_above_0.5", a.silent_wrong}});
+                            {"ok_with_held_out_above_0.5", a.silent_wrong},
+                            {"correct", a.correct},
+                            {"flagged_correct", a.false_alarms},
+                            {"wrong", a.wrong},
+                            {"flagged_wrong", a.detected}});
   }
   return j.dump(2) + "\n";
 }

@@ -53,7 +53,18 @@ struct DmfRegionAccuracy {
   // wrong answers); per status code, the number of points.
   int ok = 0, flagged = 0, silent_wrong = 0;
   std::map<int, int> statuses;
+  // What the flags mean (issue #24 section 3), over the points with a fitted NDF: a point is
+  // correct when its held-out error (captures with held-out dots) is within the tolerance, its
+  // k_s within kDmfCorrectKsRatio of the truth and, on a one-sided region, alpha on the rough
+  // face's side of 0.5; otherwise wrong. A flagged point (any status but ok and interpolated)
+  // that is correct is a false alarm; a flagged wrong point is detected.
+  int correct = 0, false_alarms = 0, wrong = 0, detected = 0;
+  double FalseAlarmRate() const { return correct > 0 ? static_cast<double>(false_alarms) / correct : 0; }
 };
+
+// A fitted k_s within [1/r, r] times the true one counts as correct (the clean slab reads 0.75-1.3
+// on the simulated rig, docs/models/dual_microfacet_fit.md; k_s is a model quantity).
+constexpr double kDmfCorrectKsRatio = 1.5;
 
 // `held_out_tolerance`: the held-out error above which an ok point counts as silently wrong.
 std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps,

@@ -58,7 +58,8 @@ DmfSlice DmfSliceSet::Slice(int p) const {
     slice.edge.resize(nd);
     for (int q = 0; q < nd; ++q) {
       const int ix = q % dots_nx, iy = q / dots_nx;
-      slice.edge[q] = ix == 0 || iy == 0 || ix == dots_nx - 1 || iy == dots_ny - 1;
+      slice.edge[q] = (ix == 0 ? kFirstColumn : 0) | (ix == dots_nx - 1 ? kLastColumn : 0) |
+                      (iy == 0 ? kFirstRow : 0) | (iy == dots_ny - 1 ? kLastRow : 0);
     }
   }
   const size_t base = static_cast<size_t>(p) * nd;

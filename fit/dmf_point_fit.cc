@@ -277,6 +277,7 @@ bool DmfPointFitOptions::Check(std::string* error) const {
     e << "initial_smith_alpha must be in [0.01, 1.5], got " << initial_smith_alpha;
   else if (!(alpha_tolerance > 0 && alpha_tolerance < 0.5)) e << "alpha_tolerance must be in (0, 0.5), got " << alpha_tolerance;
   else if (max_alpha_iterations < 1) e << "max_alpha_iterations must be >= 1, got " << max_alpha_iterations;
+  else if (!(max_alpha_residual >= 0)) e << "max_alpha_residual must be >= 0, got " << max_alpha_residual;
   else if (!(min_relative_value > 0 && min_relative_value < 1))
     e << "min_relative_value must be in (0, 1), got " << min_relative_value;
   else if (min_measurements < 3) e << "min_measurements must be >= 3, got " << min_measurements;
@@ -287,6 +288,8 @@ bool DmfPointFitOptions::Check(std::string* error) const {
     e << "max_edge_fraction must be in (0, 1], got " << max_edge_fraction;
   else if (!(max_transmittance > 0)) e << "max_transmittance must be > 0, got " << max_transmittance;
   else if (!(max_k_s > 0)) e << "max_k_s must be > 0, got " << max_k_s;
+  else if (!(min_unit_transmittance >= 0 && min_unit_transmittance < 1))
+    e << "min_unit_transmittance must be in [0, 1), got " << min_unit_transmittance;
   *error = e.str();
   return error->empty();
 }
@@ -350,18 +353,31 @@ std::vector<int> UsableTrainingDots(const DmfSlice& slice, const DmfPointFitOpti
 }
 
 bool DmfPointFitOptions::Undersampled(double measured_ndf_fraction, const DmfSlice& slice) const {
-  return measured_ndf_fraction < min_measured_ndf_fraction || LobeFractionAtEdge(slice) > max_edge_fraction;
+  return measured_ndf_fraction < min_measured_ndf_fraction || LobeFractionAtOppositeEdges(slice) > max_edge_fraction ||
+         LobePeaksOnEdge(slice);
 }
 
-double LobeFractionAtEdge(const DmfSlice& slice) {
+double LobeFractionAtOppositeEdges(const DmfSlice& slice) {
   if (static_cast<int>(slice.edge.size()) != slice.num_dots()) return 0;
   const double peak = TrainingPeak(slice);
   if (!(peak > 0)) return 0;
-  double edge = 0;
+  double border[4] = {0, 0, 0, 0};  // Indexed by the bit of DmfGridBorder.
   for (int q = 0; q < slice.num_dots(); ++q) {
-    if (slice.train[q] && slice.edge[q]) edge = std::max(edge, slice.value[q] - slice.rho_d);
+    if (!slice.train[q]) continue;
+    for (int b = 0; b < 4; ++b) {
+      if (slice.edge[q] & (1 << b)) border[b] = std::max(border[b], slice.value[q] - slice.rho_d);
+    }
   }
-  return edge / peak;
+  return std::max(std::min(border[0], border[1]), std::min(border[2], border[3])) / peak;
+}
+
+bool LobePeaksOnEdge(const DmfSlice& slice) {
+  if (static_cast<int>(slice.edge.size()) != slice.num_dots()) return false;
+  int peak_dot = -1;
+  for (int q = 0; q < slice.num_dots(); ++q) {
+    if (slice.train[q] && (peak_dot < 0 || slice.value[q] > slice.value[peak_dot])) peak_dot = q;
+  }
+  return peak_dot >= 0 && slice.edge[peak_dot] != 0;
 }
 
 DmfStatus PrecheckSlice(const DmfSlice& slice, const DmfPointFitOptions& options) {
@@ -437,26 +453,54 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   UpdateShadowing(fit.smith_alpha, &rows);
 
   // Eqs. 15-19: alternate NDF and alpha, first with polar symmetry, then one unconstrained pass.
+  // step(a) = Eq. 18's alpha with D solved at a, minus a: alpha is a fixed point where it is 0.
   std::vector<double> log_d;
-  double alpha = 0.5;
-  bool converged = false;
-  for (int it = 0; it < options.max_alpha_iterations; ++it) {
-    if (!SolveNdf(rows, grid, alpha, options.smoothness, true, &log_d)) {
-      fit.status = DmfStatus::kNoLobe;
-      return fit;
-    }
+  bool solved = true;
+  auto step = [&](double a) {
+    solved = solved && SolveNdf(rows, grid, a, options.smoothness, true, &log_d);
+    if (!solved) return 0.0;
     const double next = GoldenSectionAlpha(rows, log_d, measured_mean, options.golden_tolerance);
-    fit.alpha_iterations = it + 1;
-    const double change = std::abs(next - alpha);
+    ++fit.alpha_iterations;
     if (trace != nullptr) {
-      *trace << "  iteration " << it + 1 << ": NDF solved (Eqs. 15-17) at alpha " << alpha
-             << ", golden-section alpha (Eq. 18) -> " << next << " (change " << change << ")\n";
+      *trace << "  iteration " << fit.alpha_iterations << ": NDF solved (Eqs. 15-17) at alpha " << a
+             << ", golden-section alpha (Eq. 18) -> " << next << " (change " << std::abs(next - a) << ")\n";
     }
-    alpha = next;
-    if (change < options.alpha_tolerance) {
-      converged = true;
+    return next - a;
+  };
+  double alpha = 0.5, previous_alpha = 0.5, previous_change = 0;
+  for (int it = 0; it < options.max_alpha_iterations; ++it) {
+    const double change = step(alpha);
+    if (!solved) break;
+    fit.alpha_residual = std::abs(change);
+    // A cycle that does not contract (alpha jumping between two values, seen on rough-top
+    // lobes): the fixed point lies between the two iterates, where step changes sign; bisect.
+    if (it > 0 && change * previous_change < 0 && std::abs(change) > 0.5 * std::abs(previous_change)) {
+      double rising = change > 0 ? alpha : previous_alpha, falling = change > 0 ? previous_alpha : alpha;
+      double rising_change = std::abs(change > 0 ? change : previous_change);
+      double falling_change = std::abs(change > 0 ? previous_change : change);
+      for (int b = 0; b < 2 * options.max_alpha_iterations && std::abs(rising - falling) > options.alpha_tolerance; ++b) {
+        const double middle = 0.5 * (rising + falling), c = step(middle);
+        if (!solved) break;
+        (c > 0 ? rising : falling) = middle;
+        (c > 0 ? rising_change : falling_change) = std::abs(c);
+      }
+      alpha = 0.5 * (rising + falling);
+      // Continuous step: both ends' changes shrink to the bracket; a jump keeps them large.
+      fit.alpha_residual = std::min(rising_change, falling_change);
+      if (trace != nullptr) {
+        *trace << "  alpha cycle: bisection to [" << std::min(rising, falling) << ", " << std::max(rising, falling)
+               << "], alpha " << alpha << ", residual " << fit.alpha_residual << "\n";
+      }
       break;
     }
+    previous_alpha = alpha;
+    previous_change = change;
+    alpha += change;
+    if (std::abs(change) < options.alpha_tolerance) break;
+  }
+  if (!solved) {
+    fit.status = DmfStatus::kNoLobe;
+    return fit;
   }
   if (!SolveNdf(rows, grid, alpha, options.smoothness, false, &log_d)) {
     fit.status = DmfStatus::kNoLobe;
@@ -487,10 +531,11 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   if (trace != nullptr) {
     *trace << "  result: top_face_weight (alpha) " << fit.alpha << ", smith_alpha " << fit.smith_alpha << ", k_s "
            << fit.k_s << ", log RMS residual " << fit.log_rms_residual << ", measured NDF fraction "
-           << fit.measured_ndf_fraction << ", transmittance " << fit.transmittance << (converged ? "" : " (alpha not converged)")
+           << fit.measured_ndf_fraction << ", transmittance " << fit.transmittance
+           << ", alpha residual (Eq. 18 change at the result) " << fit.alpha_residual
            << "\n";
   }
-  if (!converged) {
+  if (fit.alpha_residual > options.max_alpha_residual) {
     fit.status = DmfStatus::kNotConverged;
   } else if (options.Undersampled(fit.measured_ndf_fraction, slice)) {
     fit.status = DmfStatus::kUndersampled;

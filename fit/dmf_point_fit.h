@@ -42,10 +42,14 @@ struct DmfSlice {
   std::vector<double> sigma;                      // Its standard deviation [1/sr] (0: unknown).
   std::vector<double> solid_angle;                // Solid angle of dot q's grid cell seen from x [sr].
   std::vector<uint8_t> train;                     // 1: used by the fit; 0: held out.
-  std::vector<uint8_t> edge;                      // 1: dot on the border of the dot grid (empty: unknown).
+  std::vector<uint8_t> edge;                      // Borders of the dot grid dot q is on (DmfGridBorder bits; empty: unknown).
   double rho_d = 0;                               // Diffuse term of Eq. 13 [1/sr] (Eq. 14).
   int num_dots() const { return static_cast<int>(i.size()); }
 };
+
+// Bits of DmfSlice::edge: the dot lies on the first or last column, the first or last row of the
+// dot grid.
+enum DmfGridBorder : uint8_t { kFirstColumn = 1, kLastColumn = 2, kFirstRow = 4, kLastRow = 8 };
 
 enum class DmfStatus : uint8_t {
   kOk = 0,
@@ -54,17 +58,18 @@ enum class DmfStatus : uint8_t {
                       // in its core): NDF unresolved.
   kSaturated = 3,     // Too many of the point's dot measurements saturated.
   kOutside = 4,       // Point not seen by the camera or off the sample.
-  kNotConverged = 5,  // alpha still moving after max_alpha_iterations (result kept).
+  kNotConverged = 5,  // Eq. 18 still moves alpha by more than max_alpha_residual (result kept).
   kInterpolated = 6,  // Clustered run: model interpolated from representatives (Eqs. 20-22).
   // Less than min_measured_ndf_fraction of the fitted NDF's projected mass lies in cells a
   // measurement constrains: the rest is the Eq. 17 smoothness filling gaps between sparse dots
   // or extrapolating a lobe wider than the monitor, so k_s (the NDF's integral) and the tails
-  // are not measured. Also when the lobe at the border dots of the grid is still above
-  // max_edge_fraction of its peak (it runs past the monitor). The fit is kept; it predicts the
-  // dots it saw.
+  // are not measured. Also when the lobe is wider than the monitor (still above
+  // max_edge_fraction of its peak on two opposite borders of the dot grid) or peaks on a border
+  // dot (its maximum may lie beyond). The fit is kept; it predicts the dots it saw.
   kUndersampled = 7,
   // The fitted model transmits more than the light it receives (DmfPointFit::transmittance >
-  // max_transmittance), or k_s > max_k_s: the normalised NDF put its mass at half vectors that
+  // max_transmittance), k_s > max_k_s, or its normalised NDF transmits less than
+  // min_unit_transmittance: the normalised NDF put its mass at half vectors that
   // transmit almost nothing (grazing cells, where ln A of Eq. 15 is very negative and any
   // level of D fits), so k_s is meaningless although the dots seen are predicted.
   kUnphysical = 8,
@@ -81,6 +86,12 @@ struct DmfPointFitOptions {
   bool fit_smith_alpha = true;
   double alpha_tolerance = 0.01;   // Dai: stop when alpha changes by less than 0.01.
   int max_alpha_iterations = 10;   // Dai: "converges in fewer than 10 steps".
+  // Status kNotConverged when Eq. 18 still moves alpha by more than this at the result
+  // (DmfPointFit::alpha_residual). The iteration bisects a cycle that does not contract; before,
+  // such 2-cycles (alpha jumping between 1 and 0.64) flagged 12 of 25 points of a rough-top
+  // region on a dense-dot capture and left alpha at whichever iterate came last (issue #24
+  // section 3, docs/stability.md "False alarms").
+  double max_alpha_residual = 0.05;
   double golden_tolerance = 1e-3;  // Bracket width at which the golden-section search stops.
   // A measurement enters Eq. 16 when R - rho_d exceeds both this fraction of the slice's peak and
   // noise_sigmas standard deviations (its logarithm is meaningless below).
@@ -98,8 +109,12 @@ struct DmfPointFitOptions {
   // Below this measured share of the fitted NDF (DmfPointFit::measured_ndf_fraction): status
   // kUndersampled (docs/stability.md has the measured boundary).
   double min_measured_ndf_fraction = 0.5;
-  // A lobe still above this fraction of its peak at the border of the dot grid runs past the
-  // monitor: the mass of D beyond it, and with it k_s, is extrapolated (status kUndersampled).
+  // A lobe still above this fraction of its peak on two opposite borders of the dot grid is wider
+  // than the monitor: the mass of D beyond it, and with it k_s, is extrapolated (status
+  // kUndersampled). A lobe cut by one border only (a point whose lobe centre lies near the
+  // monitor's edge) keeps its measured side and, by the symmetric first pass of Eq. 19, its
+  // shape: that alone flagged up to all points of a region whose alpha, k_s and held-out
+  // prediction were right (issue #24 section 3, docs/stability.md "False alarms").
   double max_edge_fraction = 0.5;
   // Above this directional transmittance: status kUnphysical. A non-absorbing slab transmits at
   // most 1; the margin covers noise and the Eq. 14 rho_d taken from the lobe's floor.
@@ -108,11 +123,21 @@ struct DmfPointFitOptions {
   // transmittance over that of the unit model, about 1 for a clean non-absorbing slab (0.75-1.3
   // measured on the simulated rig); 4 leaves room for rho_d and calibration errors.
   double max_k_s = 4;
+  // Below this transmittance per unit k_s (the normalised NDF's own directional transmittance):
+  // status kUnphysical. The NDF put most of its mass at half vectors that send the light nowhere
+  // near the hemisphere (grazing cells); k_s then scales up a model whose light is mostly not
+  // seen. Measured (issue #24 section 3): points with k_s within 1.5 x the truth read 0.16-1.2
+  // (5th percentile 0.18) over the stability matrix and five nine-region captures; the status-ok
+  // points of a lobe wider than the monitor with k_s 3.0-3.5 (true 1) read 0.07.
+  double min_unit_transmittance = 0.15;
   // The point's measurements, alpha iterations and result (`fit dmf --pixel`); nullptr: none.
   std::ostream* trace = nullptr;
   bool Check(std::string* error) const;
-  // Status kUnphysical: transmits more than max_transmittance, or k_s above max_k_s.
-  bool Unphysical(double transmittance, double k_s) const { return transmittance > max_transmittance || k_s > max_k_s; }
+  // Status kUnphysical: transmits more than max_transmittance, k_s above max_k_s, or less than
+  // min_unit_transmittance per unit k_s.
+  bool Unphysical(double transmittance, double k_s) const {
+    return transmittance > max_transmittance || k_s > max_k_s || transmittance < min_unit_transmittance * k_s;
+  }
   // Status kUndersampled: too little of the NDF measured, or the lobe runs past the monitor.
   bool Undersampled(double measured_ndf_fraction, const DmfSlice& slice) const;
 };
@@ -125,6 +150,9 @@ struct DmfPointFit {
   double rho_d = 0;          // [1/sr], copied from the slice.
   std::vector<double> log_ndf;  // ln D per cell (N*N, D normalised: projected integral 1); empty if not fitted.
   int alpha_iterations = 0;
+  // |Eq. 18's alpha - alpha| at the result, D solved there: 0 at an exact fixed point; below
+  // alpha_tolerance when the iteration converged; large where Eq. 18 jumps across the result.
+  double alpha_residual = 0;
   int num_used = 0;             // Training measurements in Eq. 16.
   double log_rms_residual = 0;  // RMS of the Eq. 15 residuals in ln units at the solution.
   // Share of the fitted NDF's projected integral in cells that an Eq. 16 row touches (the 2 x 2
@@ -149,9 +177,13 @@ double EstimateDiffuse(const DmfSlice& slice, int nx, int ny, double fraction = 
 
 // Largest R - rho_d over the training dots.
 double TrainingPeak(const DmfSlice& slice);
-// Largest R - rho_d of the training dots on the border of the dot grid (the monitor's outermost
-// directions) over the training peak; 0 when the slice does not mark its border dots.
-double LobeFractionAtEdge(const DmfSlice& slice);
+// How far the lobe runs past two opposite borders of the dot grid (the monitor's outermost
+// directions): per border, the largest R - rho_d of its training dots over the training peak;
+// the result is the larger over the two axes of the smaller of the two opposite borders' values.
+// 0 when the slice does not mark its border dots.
+double LobeFractionAtOppositeEdges(const DmfSlice& slice);
+// True when the largest training R - rho_d is on a border dot of the grid.
+bool LobePeaksOnEdge(const DmfSlice& slice);
 // Training dots whose R - rho_d can enter the logarithms of Eqs. 15-16: above
 // min_relative_value of the training peak and noise_sigmas standard deviations.
 std::vector<int> UsableTrainingDots(const DmfSlice& slice, const DmfPointFitOptions& options);
