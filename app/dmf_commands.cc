@@ -58,6 +58,10 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddDouble("max-transmittance", &run.fit.point.max_transmittance,
                    "above this directional transmittance of the fit: status unphysical");
   parser.AddDouble("max-k-s", &run.fit.point.max_k_s, "above this k_s: status unphysical");
+  parser.AddDouble("family-ratio", &run.fit.point.roughness.family_ratio,
+                   "ndf_family: the GGX or Beckmann fit whose misfit is smaller by this factor; closer: undecided");
+  parser.AddDouble("one-face-alpha", &run.fit.point.roughness.one_face_alpha,
+                   "rough_face: top at alpha >= this, bottom at alpha <= 1 - this, else both");
   parser.AddDouble("min-unit-transmittance", &run.fit.point.min_unit_transmittance,
                    "below this directional transmittance per unit k_s: status unphysical");
   parser.AddDouble("cluster-fraction", &run.cluster_fraction, "k-means representatives per point; 0 = fit every point");

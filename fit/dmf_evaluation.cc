@@ -96,7 +96,9 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
     a.name = r.name;
     a.true_k_s = r.k_s;
     a.true_rho_d = r.rho_d;
-    std::vector<double> alpha, ndf, held, k_s, rho_d;
+    std::vector<double> alpha, ndf, held, k_s, rho_d, roughness;
+    const DmfTruthFace* single = r.SingleRoughFace();
+    int family_right = 0, family_undecided = 0, face_right = 0;
     const double margin = slices.pitch_m;
     for (int p = 0; p < slices.num_points(); ++p) {
       const Eigen::Vector3d x = slices.PointPosition(p);
@@ -114,7 +116,13 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
       alpha.push_back(f.alpha);
       k_s.push_back(f.k_s);
       rho_d.push_back(f.rho_d);
-      if (const DmfTruthFace* face = r.SingleRoughFace()) ndf.push_back(NdfRelativeL2(f, grid, *face));
+      roughness.push_back(f.roughness.roughness);
+      if (single != nullptr) {
+        ndf.push_back(NdfRelativeL2(f, grid, *single));
+        family_right += NdfFamilyName(f.roughness.family) == single->ndf;
+        family_undecided += f.roughness.family == NdfFamily::kUndecided;
+        face_right += RoughFaceOf(f.alpha) == (single == &r.top ? RoughFace::kTop : RoughFace::kBottom);
+      }
       bool correct = f.k_s * kDmfCorrectKsRatio >= r.k_s && f.k_s <= kDmfCorrectKsRatio * r.k_s;
       if (const DmfTruthFace* face = r.SingleRoughFace()) correct = correct && (f.alpha > 0.5) == (face == &r.top);
       if (held_out) {
@@ -131,6 +139,13 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
     a.median_held_out = Median(held);
     a.median_k_s = Median(k_s);
     a.median_rho_d = Median(rho_d);
+    a.median_roughness = Median(roughness);
+    if (single != nullptr && a.fitted > 0) {
+      a.true_roughness = std::sqrt(single->alpha_x * single->alpha_y);
+      a.family_right = static_cast<double>(family_right) / a.fitted;
+      a.family_undecided = static_cast<double>(family_undecided) / a.fitted;
+      a.face_right = static_cast<double>(face_right) / a.fitted;
+    }
     out.push_back(a);
   }
   return out;
@@ -160,7 +175,12 @@ std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
                             {"correct", a.correct},
                             {"flagged_correct", a.false_alarms},
                             {"wrong", a.wrong},
-                            {"flagged_wrong", a.detected}});
+                            {"flagged_wrong", a.detected},
+                            {"median_equivalent_roughness", a.median_roughness},
+                            {"true_roughness", a.true_roughness},
+                            {"family_right_fraction", a.family_right},
+                            {"family_undecided_fraction", a.family_undecided},
+                            {"rough_face_right_fraction", a.face_right}});
   }
   return j.dump(2) + "\n";
 }

@@ -59,6 +59,12 @@ struct DmfRegionAccuracy {
   // face's side of 0.5; otherwise wrong. A flagged point (any status but ok and interpolated)
   // that is correct is a false alarm; a flagged wrong point is detected.
   int correct = 0, false_alarms = 0, wrong = 0, detected = 0;
+  // The analytic NDF nearest to the tabulated one (fit/dmf_equivalent_roughness.h) against the
+  // truth of a one-sided region (its face's roughness, sqrt(alpha_x alpha_y) when anisotropic;
+  // -1 elsewhere): median equivalent roughness, and the share of fitted points whose family is
+  // the true one, undecided, and whose rough face (from alpha) is the true one.
+  double median_roughness = -1, true_roughness = -1;
+  double family_right = -1, family_undecided = -1, face_right = -1;
   double FalseAlarmRate() const { return correct > 0 ? static_cast<double>(false_alarms) / correct : 0; }
 };
 

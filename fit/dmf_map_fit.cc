@@ -145,9 +145,20 @@ bool DmfMapFitOptions::Check(std::string* error) const {
   return true;
 }
 
-Image DmfMaps::ToImage() const {
+std::vector<uint8_t> SplitTrainingHalf(const std::vector<uint8_t>& train, int nx, int half) {
+  std::vector<uint8_t> out(train.size(), 0);
+  int rank = 0;
+  for (size_t q = 0; q < train.size(); ++q) {
+    if (nx > 0 && q % nx == 0) rank = 0;
+    if (!train[q]) continue;
+    out[q] = (rank++ % 2) == half;
+  }
+  return out;
+}
+
+Image DmfMaps::ToImage(const EquivalentRoughnessOptions& roughness_options) const {
   Image image(width, height, {"top_face_weight", "smith_alpha", "k_s", "rho_d", "log_rms_residual", "status", "measured_ndf_fraction",
-                              "transmittance"});
+                              "transmittance", "equivalent_roughness", "ndf_family", "rough_face"});
   for (int p = 0; p < width * height; ++p) {
     const DmfPointFit& f = fits[p];
     const int x = p % width, y = p / width;
@@ -159,6 +170,9 @@ Image DmfMaps::ToImage() const {
     image.at(x, y, 5) = static_cast<float>(static_cast<int>(f.status));
     image.at(x, y, 6) = static_cast<float>(f.measured_ndf_fraction);
     image.at(x, y, 7) = static_cast<float>(f.transmittance);
+    image.at(x, y, 8) = static_cast<float>(f.roughness.roughness);
+    image.at(x, y, 9) = static_cast<float>(static_cast<int>(f.roughness.family));
+    image.at(x, y, 10) = static_cast<float>(static_cast<int>(RoughFaceOf(f.alpha, roughness_options)));
   }
   return image;
 }
@@ -231,7 +245,20 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       static_cast<int>(direct.size()), options.num_threads,
       [&](int k) {
         const int p = direct[k];
-        maps->fits[p] = FitDualMicrofacetPoint(slices.Slice(p), grid, options.point);
+        const DmfSlice slice = slices.Slice(p);
+        DmfPointFit& fit = maps->fits[p];
+        fit = FitDualMicrofacetPoint(slice, grid, options.point);
+        if (!options.split_half || fit.log_ndf.empty()) return;
+        DmfPointFit halves[2];
+        for (int h = 0; h < 2; ++h) {
+          DmfSlice half = slice;
+          half.train = SplitTrainingHalf(slice.train, slices.dots_nx, h);
+          halves[h] = FitDualMicrofacetPoint(half, grid, options.point);
+          if (halves[h].log_ndf.empty()) return;
+        }
+        fit.split_fitted = true;
+        fit.split_alpha_difference = halves[0].alpha - halves[1].alpha;
+        fit.split_roughness_difference = halves[0].roughness.roughness - halves[1].roughness.roughness;
       },
       &progress);
   if (!finished) return Status::Error("FitDualMicrofacetMaps: cancelled");
@@ -261,6 +288,10 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         f.alpha += w * rep.alpha;
         f.smith_alpha += w * rep.smith_alpha;
         f.measured_ndf_fraction += w * rep.measured_ndf_fraction;
+        f.roughness.ggx_alpha += w * rep.roughness.ggx_alpha;
+        f.roughness.beckmann_alpha += w * rep.roughness.beckmann_alpha;
+        f.roughness.ggx_misfit += w * rep.roughness.ggx_misfit;
+        f.roughness.beckmann_misfit += w * rep.roughness.beckmann_misfit;
         // The refracted part of the transmittance is linear in k_s for a fixed normalised NDF:
         // each representative's, rescaled to this point's k_s and rho_d below (the integral is
         // not evaluated per interpolated point: it would cost about as much as the
@@ -279,6 +310,11 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       f.alpha /= weight_sum;
       f.smith_alpha /= weight_sum;
       f.measured_ndf_fraction /= weight_sum;
+      f.roughness.ggx_alpha /= weight_sum;
+      f.roughness.beckmann_alpha /= weight_sum;
+      f.roughness.ggx_misfit /= weight_sum;
+      f.roughness.beckmann_misfit /= weight_sum;
+      DecideFamily(options.point.roughness, &f.roughness);
       f.log_ndf.resize(grid.num_cells());
       for (int cell = 0; cell < grid.num_cells(); ++cell) {
         f.log_ndf[cell] = std::log(std::max(d[cell] / weight_sum, 1e-6));

@@ -84,6 +84,10 @@ struct HoldOutPattern {
   bool Check(std::string* error) const;
 };
 
+// Half `half` (0 or 1) of the training dots of `train` (nx x ny grid, row-major): every other
+// training dot along each row, so each half spans the whole monitor.
+std::vector<uint8_t> SplitTrainingHalf(const std::vector<uint8_t>& train, int nx, int half);
+
 // 1 = fitted, 0 = held out: all 1 without `hold_out`, else `pattern`.
 std::vector<uint8_t> HoldOutTrainMask(int nx, int ny, bool hold_out, const HoldOutPattern& pattern);
 
@@ -91,6 +95,9 @@ struct DmfMapFitOptions {
   DmfPointFitOptions point;
   bool cluster = true;
   DmfClusteringOptions clustering;
+  // Also fit every directly fitted point from each half of its training dots (alternate training
+  // dots along each dot row) for the noise part of the error bars of alpha and roughness.
+  bool split_half = true;
   int num_threads = DefaultThreadCount();
   // Reports the per-point fits; returning false cancels the fit (core/progress.h).
   ProgressCallback progress;
@@ -110,9 +117,11 @@ struct DmfMaps {
   int num_fitted = 0;             // Points fitted directly (representatives or all).
   DmfClustering clustering;       // Empty unless clustered.
   DmfMapTimings timings;
-  // Channels alpha, smith_alpha, k_s, rho_d, residual (ln RMS of Eq. 15), status; finite
-  // everywhere (defaults where status says nothing was fitted).
-  Image ToImage() const;
+  // Channels top_face_weight (Dai's alpha), smith_alpha, k_s, rho_d, log_rms_residual (ln RMS of
+  // Eq. 15), status, measured_ndf_fraction, transmittance, equivalent_roughness, ndf_family
+  // (NdfFamily code), rough_face (RoughFace code of alpha); finite everywhere (defaults where
+  // status says nothing was fitted: roughness 0, family undecided, rough face both).
+  Image ToImage(const EquivalentRoughnessOptions& roughness_options = EquivalentRoughnessOptions()) const;
 };
 
 Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& options, DmfMaps* maps);

@@ -293,6 +293,7 @@ bool ReplaceWithLadderRung(const LadderResult& shape, int rung_index, const DmfS
     SampleLogNdf(GgxDistribution(roughness), grid, &out.log_ndf);
   }
   out.smith_alpha = roughness;
+  out.roughness = FitEquivalentRoughness(out.log_ndf, grid, options.roughness);
   if (!ScaleLadderShape(slice, grid, options, -1, &out)) return false;
   *fit = std::move(out);
   return true;
@@ -305,6 +306,7 @@ bool AdoptLadderShape(const DmfPointFit& replaced, const DmfSlice& slice, const 
   out.alpha = replaced.alpha;
   out.smith_alpha = replaced.smith_alpha;
   out.log_ndf = replaced.log_ndf;
+  out.roughness = replaced.roughness;
   const double per_k_s = std::max(0.0, replaced.transmittance - kPi * replaced.rho_d) / replaced.k_s;
   if (!ScaleLadderShape(slice, grid, options, per_k_s, &out)) return false;
   *fit = std::move(out);

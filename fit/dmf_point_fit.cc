@@ -288,6 +288,11 @@ bool DmfPointFitOptions::Check(std::string* error) const {
     e << "max_edge_fraction must be in (0, 1], got " << max_edge_fraction;
   else if (!(max_transmittance > 0)) e << "max_transmittance must be > 0, got " << max_transmittance;
   else if (!(max_k_s > 0)) e << "max_k_s must be > 0, got " << max_k_s;
+  else if (!(roughness.family_ratio >= 1)) e << "roughness.family_ratio must be >= 1, got " << roughness.family_ratio;
+  else if (!(roughness.one_face_alpha > 0.5 && roughness.one_face_alpha <= 1))
+    e << "roughness.one_face_alpha must be in (0.5, 1], got " << roughness.one_face_alpha;
+  else if (!(roughness.min_relative_d >= 0 && roughness.min_relative_d < 1))
+    e << "roughness.min_relative_d must be in [0, 1), got " << roughness.min_relative_d;
   else if (!(min_unit_transmittance >= 0 && min_unit_transmittance < 1))
     e << "min_unit_transmittance must be in [0, 1), got " << min_unit_transmittance;
   *error = e.str();
@@ -528,6 +533,7 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   }
   fit.alpha = alpha;
   fit.transmittance = DirectionalTransmittance(fit, grid, options.eta, slice.o);
+  fit.roughness = FitEquivalentRoughness(fit.log_ndf, grid, options.roughness);
   if (trace != nullptr) {
     *trace << "  result: top_face_weight (alpha) " << fit.alpha << ", smith_alpha " << fit.smith_alpha << ", k_s "
            << fit.k_s << ", log RMS residual " << fit.log_rms_residual << ", measured NDF fraction "

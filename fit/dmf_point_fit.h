@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "thinslab/fit/dmf_equivalent_roughness.h"
 #include "thinslab/fit/dmf_ndf_grid.h"
 
 namespace thinslab {
@@ -130,6 +131,8 @@ struct DmfPointFitOptions {
   // (5th percentile 0.18) over the stability matrix and five nine-region captures; the status-ok
   // points of a lobe wider than the monitor with k_s 3.0-3.5 (true 1) read 0.07.
   double min_unit_transmittance = 0.15;
+  // The analytic family and roughness nearest to the fitted NDF (DmfPointFit::roughness).
+  EquivalentRoughnessOptions roughness;
   // The point's measurements, alpha iterations and result (`fit dmf --pixel`); nullptr: none.
   std::ostream* trace = nullptr;
   bool Check(std::string* error) const;
@@ -163,6 +166,14 @@ struct DmfPointFit {
   // Interpolated points (clustered runs) take their representatives', rescaled to their own
   // k_s and rho_d (fit/dmf_map_fit.cc).
   double transmittance = 0;
+  // The analytic NDF nearest to log_ndf (fit/dmf_equivalent_roughness.h); interpolated points
+  // take their representatives' weighted alphas and misfits.
+  EquivalentRoughness roughness;
+  // Split-half refit (DmfMapFitOptions::split_half): alpha and equivalent roughness fitted from
+  // each half of the training dots, their differences (first half minus second); `split_fitted`
+  // false where either half could not be fitted or no split was run.
+  bool split_fitted = false;
+  double split_alpha_difference = 0, split_roughness_difference = 0;
 };
 
 // DmfPointFit::transmittance: sum of R over a 64 x 64 grid of the unit disk of projected light

@@ -9,6 +9,7 @@
 #include <iostream>
 #include <map>
 #include <sstream>
+#include <tuple>
 
 #include "thinslab/pipeline/calibration_summary.h"
 #include "thinslab/pipeline/capture_reading.h"
@@ -20,6 +21,7 @@
 #include "thinslab/core/parallel.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
+#include "thinslab/fit/dmf_equivalent_roughness.h"
 #include "thinslab/fit/dmf_evaluation.h"
 #include "thinslab/fit/dmf_map_fit.h"
 #include "thinslab/fit/dmf_model_ladder.h"
@@ -274,7 +276,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
 
   const auto write_start = std::chrono::steady_clock::now();
   const Provenance provenance{"fit dmf", session_dir, "", run.options_ini};
-  Image image = maps.ToImage();
+  Image image = maps.ToImage(run.fit.point.roughness);
   image.attributes()["model"] = "dai2009_dual_microfacet";
   image.numeric_attributes()["grid_min_m"] = {slices.grid_min_m.x(), slices.grid_min_m.y()};
   image.numeric_attributes()["pixel_pitch_m"] = {slices.pitch_m};
@@ -283,7 +285,8 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   // Which model each point's maps hold: rung 5 (tabulated) unless the ladder replaced it
   // (ladder.exr channel rung).
   image.attributes()["ladder_applied"] = run.ladder && run.ladder_apply ? "true" : "false";
-  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), "maps.exr"), image, {"smith_alpha", {"status"}}, provenance));
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), "maps.exr"), image, {"smith_alpha", {"status", "ndf_family", "rough_face"}},
+                                          provenance));
 
   // NDF atlas: tiles in the orthographic projection of optics/dual_microfacet_btdf.h.
   const int n = maps.ndf_resolution;
@@ -327,7 +330,8 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     int channel;
     double max;
   } pictures[] = {{"top_face_weight", 0, 1}, {"smith_alpha", 1, 1},      {"k_s", 2, 1.5},
-                  {"rho_d", 3, 0.2},          {"log_rms_residual", 4, 1}, {"measured_ndf_fraction", 6, 1}};
+                  {"rho_d", 3, 0.2},          {"log_rms_residual", 4, 1}, {"measured_ndf_fraction", 6, 1},
+                  {"equivalent_roughness", 8, 1}};
   for (const auto& pic : pictures) {
     FalseColorOptions color;
     color.label = pic.name;
@@ -345,6 +349,17 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     color.scale = std::max(1, 256 / std::max(maps.width, maps.height));
     color.pixel_pitch_m = slices.pitch_m;
     THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "status_falsecolor.png"), image, 5, nullptr, color));
+  }
+  for (const auto& [name, channel, names] :
+       {std::make_tuple("ndf_family", 9, NdfFamilyNames()), std::make_tuple("rough_face", 10, RoughFaceNames())}) {
+    FalseColorOptions color;
+    color.scale_kind = ColorScale::kCategorical;
+    color.label = name;
+    color.category_names = names;
+    color.scale = std::max(1, 256 / std::max(maps.width, maps.height));
+    color.pixel_pitch_m = slices.pitch_m;
+    THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), std::string(name) + "_falsecolor.png"), image,
+                                                channel, &unfitted, color));
   }
   // NDF pictures (Dai Fig. 6): fitted on the left; the true face NDF on the right where the
   // capture has ground truth and the point's region has one rough face.
@@ -394,6 +409,17 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
                               : std::vector<DmfValidationError>();
   std::map<std::string, int> counts;
   for (const DmfPointFit& f : maps.fits) ++counts[DmfStatusName(f.status)];
+  // Family, rough face and equivalent roughness over the points whose fit stands (ok, interpolated).
+  std::map<std::string, int> families, faces;
+  std::vector<double> roughness;
+  for (const DmfPointFit& f : maps.fits) {
+    if ((f.status != DmfStatus::kOk && f.status != DmfStatus::kInterpolated) || f.log_ndf.empty()) continue;
+    ++families[NdfFamilyName(f.roughness.family)];
+    ++faces[RoughFaceName(RoughFaceOf(f.alpha, run.fit.point.roughness))];
+    roughness.push_back(f.roughness.roughness);
+  }
+  std::sort(roughness.begin(), roughness.end());
+  auto quantile = [&](double q) { return roughness.empty() ? nlohmann::json(nullptr) : nlohmann::json(roughness[static_cast<size_t>(q * (roughness.size() - 1))]); };
   const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - write_start).count();
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
@@ -417,6 +443,12 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["clustered"] = run.fit.cluster;
   j["points_fitted_directly"] = maps.num_fitted;
   j["status_counts"] = counts;
+  j["equivalent_ndf"] = {{"note", "points with status ok or interpolated; the analytic NDF nearest to each tabulated one"},
+                         {"ndf_family_counts", families},
+                         {"rough_face_counts", faces},
+                         {"equivalent_roughness_quantiles", {{"p10", quantile(0.1)}, {"median", quantile(0.5)}, {"p90", quantile(0.9)}}},
+                         {"family_ratio", run.fit.point.roughness.family_ratio},
+                         {"one_face_alpha", run.fit.point.roughness.one_face_alpha}};
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
   j["dot_radius"] = {{"monitor_px", processing.dot_radius_px}, {"source", processing.dot_radius_source}};
   j["glass_thickness_m"] = processing.glass_thickness_m;
