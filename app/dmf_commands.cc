@@ -49,6 +49,8 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddInt("ndf-resolution", &run.fit.point.ndf_resolution, "N of the N x N NDF grid");
   parser.AddDouble("smoothness", &run.fit.point.smoothness, "weight of the Eq. 17 Laplacian rows");
   parser.AddBool("fit-smith", &run.fit.point.fit_smith_alpha, "fit the Smith roughness (Levenberg-Marquardt)");
+  parser.AddDouble("alpha-lobe-fraction", &run.fit.point.alpha_lobe_fraction,
+                   "Eq. 18 compares mean directions over the dots above this fraction of the lobe's peak");
   parser.AddDouble("min-measured-ndf-fraction", &run.fit.point.min_measured_ndf_fraction,
                    "below this measured share of the fitted NDF: status undersampled");
   parser.AddDouble("max-edge-fraction", &run.fit.point.max_edge_fraction,
@@ -64,6 +66,8 @@ int RunFitDmf(int argc, char** argv) {
                    "rough_face: top at alpha >= this, bottom at alpha <= 1 - this, else both");
   parser.AddDouble("min-unit-transmittance", &run.fit.point.min_unit_transmittance,
                    "below this directional transmittance per unit k_s: status unphysical");
+  parser.AddBool("split-half", &run.fit.split_half,
+                 "also fit each half of the training dots (error bars of alpha and roughness; 3x the point-fit time)");
   parser.AddDouble("cluster-fraction", &run.cluster_fraction, "k-means representatives per point; 0 = fit every point");
   parser.AddInt("neighbors", &run.fit.clustering.num_neighbors, "representatives per interpolated point (Eq. 20)");
   parser.AddBool("hold-out", &run.processing.hold_out, "hold out dots from the fit (--hold-out-pattern)");

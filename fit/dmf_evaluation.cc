@@ -99,6 +99,11 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
     std::vector<double> alpha, ndf, held, k_s, rho_d, roughness;
     const DmfTruthFace* single = r.SingleRoughFace();
     int family_right = 0, family_undecided = 0, face_right = 0;
+    const bool isotropic_single = single != nullptr && single->alpha_x == single->alpha_y;
+    const bool same_faces = !r.top.flat && !r.bottom.flat && r.top.ndf == r.bottom.ndf &&
+                            r.top.alpha_x == r.bottom.alpha_x && r.top.alpha_y == r.bottom.alpha_y;
+    const double true_alpha = single != nullptr ? (single == &r.top ? 1.0 : 0.0) : same_faces ? 0.5 : -1;
+    int covered = 0, rough_1 = 0, rough_2 = 0, alpha_1 = 0, alpha_2 = 0;
     const double margin = slices.pitch_m;
     for (int p = 0; p < slices.num_points(); ++p) {
       const Eigen::Vector3d x = slices.PointPosition(p);
@@ -117,6 +122,19 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
       k_s.push_back(f.k_s);
       rho_d.push_back(f.rho_d);
       roughness.push_back(f.roughness.roughness);
+      if (ok) {
+        ++covered;
+        if (isotropic_single) {
+          const double e = std::abs(f.roughness.roughness - single->alpha_x);
+          rough_1 += e <= f.sigma_roughness;
+          rough_2 += e <= 2 * f.sigma_roughness;
+        }
+        if (true_alpha >= 0) {
+          const double e = std::abs(f.alpha - true_alpha);
+          alpha_1 += e <= f.sigma_alpha;
+          alpha_2 += e <= 2 * f.sigma_alpha;
+        }
+      }
       if (single != nullptr) {
         ndf.push_back(NdfRelativeL2(f, grid, *single));
         family_right += NdfFamilyName(f.roughness.family) == single->ndf;
@@ -140,6 +158,14 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
     a.median_k_s = Median(k_s);
     a.median_rho_d = Median(rho_d);
     a.median_roughness = Median(roughness);
+    if (covered > 0 && isotropic_single) {
+      a.roughness_within_1_sigma = static_cast<double>(rough_1) / covered;
+      a.roughness_within_2_sigma = static_cast<double>(rough_2) / covered;
+    }
+    if (covered > 0 && true_alpha >= 0) {
+      a.alpha_within_1_sigma = static_cast<double>(alpha_1) / covered;
+      a.alpha_within_2_sigma = static_cast<double>(alpha_2) / covered;
+    }
     if (single != nullptr && a.fitted > 0) {
       a.true_roughness = std::sqrt(single->alpha_x * single->alpha_y);
       a.family_right = static_cast<double>(family_right) / a.fitted;
@@ -180,7 +206,11 @@ std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
                             {"true_roughness", a.true_roughness},
                             {"family_right_fraction", a.family_right},
                             {"family_undecided_fraction", a.family_undecided},
-                            {"rough_face_right_fraction", a.face_right}});
+                            {"rough_face_right_fraction", a.face_right},
+                            {"roughness_within_1_sigma", a.roughness_within_1_sigma},
+                            {"roughness_within_2_sigma", a.roughness_within_2_sigma},
+                            {"top_face_weight_within_1_sigma", a.alpha_within_1_sigma},
+                            {"top_face_weight_within_2_sigma", a.alpha_within_2_sigma}});
   }
   return j.dump(2) + "\n";
 }

@@ -65,6 +65,12 @@ struct DmfRegionAccuracy {
   // the true one, undecided, and whose rough face (from alpha) is the true one.
   double median_roughness = -1, true_roughness = -1;
   double family_right = -1, family_undecided = -1, face_right = -1;
+  // Coverage of the error bars (issue #24 section 4), over the status-ok points with an NDF:
+  // the share whose |estimate - truth| is within 1 and 2 sigma; -1 where the region has no
+  // truth for it. Roughness: one-sided isotropic regions. alpha (top_face_weight): 1 on a
+  // rough-top region, 0 on a rough-bottom one, 0.5 where both faces are the same.
+  double roughness_within_1_sigma = -1, roughness_within_2_sigma = -1;
+  double alpha_within_1_sigma = -1, alpha_within_2_sigma = -1;
   double FalseAlarmRate() const { return correct > 0 ? static_cast<double>(false_alarms) / correct : 0; }
 };
 

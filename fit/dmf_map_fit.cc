@@ -145,6 +145,38 @@ bool DmfMapFitOptions::Check(std::string* error) const {
   return true;
 }
 
+void PoolSplitHalfSigmas(int width, int height, int num_threads, std::vector<DmfPointFit>* fits, int min_samples,
+                         int max_radius) {
+  ParallelFor(height, num_threads, [&](int y) {
+    for (int x = 0; x < width; ++x) {
+      DmfPointFit& f = (*fits)[y * width + x];
+      if (f.log_ndf.empty()) continue;
+      double sum_alpha = 0, sum_roughness = 0;
+      int n = 0;
+      for (int r = 0; r <= max_radius && n < min_samples; ++r) {
+        // The ring of Chebyshev radius r around (x, y).
+        for (int yy = y - r; yy <= y + r; ++yy) {
+          if (yy < 0 || yy >= height) continue;
+          const bool full_row = yy == y - r || yy == y + r;
+          for (int xx = x - r; xx <= x + r; xx += full_row || r == 0 ? 1 : 2 * r) {
+            if (xx < 0 || xx >= width) continue;
+            const DmfPointFit& g = (*fits)[yy * width + xx];
+            if (!g.split_fitted) continue;
+            sum_alpha += g.split_alpha_difference * g.split_alpha_difference;
+            sum_roughness += g.split_roughness_difference * g.split_roughness_difference;
+            ++n;
+          }
+        }
+      }
+      if (n == 0) continue;
+      f.sigma_alpha = std::sqrt(sum_alpha / (4.0 * n));
+      // Plus the model-form term: the roughness depends on the family assumed; half the GGX and
+      // Beckmann fits' difference (both fit the same table).
+      f.sigma_roughness = std::sqrt(sum_roughness / (4.0 * n) + Sqr(0.5 * (f.roughness.ggx_alpha - f.roughness.beckmann_alpha)));
+    }
+  });
+}
+
 std::vector<uint8_t> SplitTrainingHalf(const std::vector<uint8_t>& train, int nx, int half) {
   std::vector<uint8_t> out(train.size(), 0);
   int rank = 0;
@@ -158,7 +190,8 @@ std::vector<uint8_t> SplitTrainingHalf(const std::vector<uint8_t>& train, int nx
 
 Image DmfMaps::ToImage(const EquivalentRoughnessOptions& roughness_options) const {
   Image image(width, height, {"top_face_weight", "smith_alpha", "k_s", "rho_d", "log_rms_residual", "status", "measured_ndf_fraction",
-                              "transmittance", "equivalent_roughness", "ndf_family", "rough_face"});
+                              "transmittance", "equivalent_roughness", "ndf_family", "rough_face",
+                              "sigma_top_face_weight", "sigma_equivalent_roughness"});
   for (int p = 0; p < width * height; ++p) {
     const DmfPointFit& f = fits[p];
     const int x = p % width, y = p / width;
@@ -173,6 +206,8 @@ Image DmfMaps::ToImage(const EquivalentRoughnessOptions& roughness_options) cons
     image.at(x, y, 8) = static_cast<float>(f.roughness.roughness);
     image.at(x, y, 9) = static_cast<float>(static_cast<int>(f.roughness.family));
     image.at(x, y, 10) = static_cast<float>(static_cast<int>(RoughFaceOf(f.alpha, roughness_options)));
+    image.at(x, y, 11) = static_cast<float>(f.sigma_alpha);
+    image.at(x, y, 12) = static_cast<float>(f.sigma_roughness);
   }
   return image;
 }
@@ -339,6 +374,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     });
   }
   maps->timings.interpolation_s = Seconds(t);
+  if (options.split_half) PoolSplitHalfSigmas(maps->width, maps->height, options.num_threads, &maps->fits);
   if (options.trace.enabled()) {
     // The traced point fitted once more, alone, with its trace (the same fit as in the maps
     // when it was fitted directly; the maps' values are printed after).

@@ -88,6 +88,18 @@ struct HoldOutPattern {
 // training dot along each row, so each half spans the whole monitor.
 std::vector<uint8_t> SplitTrainingHalf(const std::vector<uint8_t>& train, int nx, int half);
 
+// Error bars of alpha and the equivalent roughness from the split-half refits: the difference d
+// of the two halves' estimates has variance 2 sigma_half^2 = 4 sigma^2 (a half has half the dots),
+// so sigma^2 = d^2 / 4, pooled over the `min_samples` nearest split-fitted points of the map
+// (one difference alone is a one-degree-of-freedom estimate: an error bar from it covers the
+// error only half the time however right its expectation). The roughness's adds, in quadrature,
+// half the difference of the point's GGX and Beckmann fits (the model-form part). Sets
+// sigma_alpha and sigma_roughness of every point with an NDF; points beyond `max_radius` map
+// pixels of any split-fitted point keep 0. Neither term sees a bias common to both halves
+// (docs/stability.md, "Dual-microfacet alpha and equivalent roughness").
+void PoolSplitHalfSigmas(int width, int height, int num_threads, std::vector<DmfPointFit>* fits, int min_samples = 8,
+                         int max_radius = 16);
+
 // 1 = fitted, 0 = held out: all 1 without `hold_out`, else `pattern`.
 std::vector<uint8_t> HoldOutTrainMask(int nx, int ny, bool hold_out, const HoldOutPattern& pattern);
 

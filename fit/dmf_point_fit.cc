@@ -280,6 +280,8 @@ bool DmfPointFitOptions::Check(std::string* error) const {
   else if (!(max_alpha_residual >= 0)) e << "max_alpha_residual must be >= 0, got " << max_alpha_residual;
   else if (!(min_relative_value > 0 && min_relative_value < 1))
     e << "min_relative_value must be in (0, 1), got " << min_relative_value;
+  else if (!(alpha_lobe_fraction >= 0 && alpha_lobe_fraction < 1))
+    e << "alpha_lobe_fraction must be in [0, 1), got " << alpha_lobe_fraction;
   else if (min_measurements < 3) e << "min_measurements must be >= 3, got " << min_measurements;
   else if (min_core_measurements < 1) e << "min_core_measurements must be >= 1, got " << min_core_measurements;
   else if (!(min_measured_ndf_fraction >= 0 && min_measured_ndf_fraction <= 1))

@@ -174,6 +174,9 @@ struct DmfPointFit {
   // false where either half could not be fitted or no split was run.
   bool split_fitted = false;
   double split_alpha_difference = 0, split_roughness_difference = 0;
+  // Standard deviations of alpha and of roughness.roughness (PoolSplitHalfSigmas and the model
+  // terms of fit/dmf_map_fit.h); 0 where not estimated.
+  double sigma_alpha = 0, sigma_roughness = 0;
 };
 
 // DmfPointFit::transmittance: sum of R over a 64 x 64 grid of the unit disk of projected light

@@ -181,6 +181,32 @@ TEST_F(DmfStability, SparseLights) {
   }
 }
 
+// The analytic NDF nearest to the tabulated one and the error bars of the roughness and alpha
+// (issue #24 sections 3-4), on the nine-region captures of FlagsRarelyMarkCorrectPoints.
+// Measured (2026-12-05; integer / float frames): median equivalent roughness 0.303 / 0.297
+// (ggx_top, true 0.3), 0.303 / 0.304 (ggx_bottom), 0.313 / 0.304 (beckmann_top), 0.271 / 0.270
+// (diffuse, true 0.25); family right or undecided 0.80-1.00 on the GGX regions, Beckmann right on
+// all of beckmann_top; rough face right on 0.90-1.00; roughness within 2 sigma 0.65-1.00 per
+// region; alpha within 2 sigma 0.92-1.00 where the truth is 0 or 0.5. Not asserted, because it
+// fails: alpha on the rough-top regions (0.83-0.90 against the true 1, within 2 sigma on 0.05-0.52
+// of the points: the split-half sigma is noise only; docs/stability.md).
+void ExpectEquivalentNdf(const CaseResult& r, const std::string& label) {
+  for (const char* name : {"ggx_top", "ggx_bottom", "beckmann_top", "diffuse"}) {
+    const DmfRegionAccuracy& a = r.regions.at(name);
+    EXPECT_NEAR(a.median_roughness, a.true_roughness, 0.1 * a.true_roughness) << name << label;
+    EXPECT_GE(a.face_right, 0.85) << name << label;
+    EXPECT_GE(a.roughness_within_2_sigma, 0.6) << name << label;
+    if (std::string(name) == "beckmann_top") {
+      EXPECT_GE(a.family_right, 0.9) << name << label;
+    } else {
+      EXPECT_GE(a.family_right + a.family_undecided, 0.75) << name << label;
+    }
+  }
+  for (const char* name : {"ggx_bottom", "ggx_both", "beckmann_both"}) {
+    EXPECT_GE(r.regions.at(name).alpha_within_2_sigma, 0.9) << name << label;
+  }
+}
+
 // What the flags mean (issue #24 section 3): on the nine-region sample (20 x 20 dots, 4 mm map,
 // every other dot held out), at most 10 % of the correct points of any region are flagged
 // (DmfRegionAccuracy: held-out error within the tolerance, k_s within 1.5 x the truth, alpha on
@@ -208,6 +234,7 @@ TEST_F(DmfStability, FlagsRarelyMarkCorrectPoints) {
       correct += a.correct;
     }
     EXPECT_GT(correct, 150) << "most points of the 8 rough regions are correct";
+    ExpectEquivalentNdf(r, float_frames ? " (float frames)" : "");
   }
 }
 
