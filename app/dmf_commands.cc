@@ -98,6 +98,7 @@ int RunFitDmf(int argc, char** argv) {
                  "maps.exr and the NDF atlas hold the chosen rung's model (false: the tabulated fit everywhere)");
   std::string pixel;
   parser.AddString("pixel", &pixel, "X,Y: print this map point's dots, alpha iterations and result (as pbrt's --pixel)");
+  parser.MarkDiagnostic("pixel");
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();

@@ -63,6 +63,7 @@ int RunFitTau(int argc, char** argv) {
                    "`fit phase` output folder of the same layer: its model ladder choice sets --refine and --g");
   std::string pixel;
   parser.AddString("pixel", &pixel, "X,Y: print this map pixel's data, iterations and result (as pbrt's --pixel)");
+  parser.MarkDiagnostic("pixel");
   Status status = parser.Parse(argc, argv);
   if (status.ok()) status = ParsePixelTrace(pixel, "--pixel", &run.fit.trace);
   run.fit.trace.out = &std::cout;

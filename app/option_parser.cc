@@ -260,8 +260,17 @@ std::string OptionParser::ToIni() const {
   std::ostringstream out;
   out << "# thinslab " << command_ << ": effective options\n";
   for (const auto& p : positionals_) out << p.name << " = " << *p.value << "\n";
-  for (const auto& o : options_) out << o.name << " = " << o.get() << "\n";
+  for (const auto& o : options_) {
+    out << (o.diagnostic ? "# " : "") << o.name << " = " << o.get() << (o.diagnostic ? "  (diagnostic: not in the digest)" : "")
+        << "\n";
+  }
   return out.str();
+}
+
+void OptionParser::MarkDiagnostic(const std::string& name) {
+  for (auto& o : options_) {
+    if (o.name == name) o.diagnostic = true;
+  }
 }
 
 }  // namespace thinslab

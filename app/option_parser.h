@@ -33,7 +33,11 @@ class OptionParser {
   // True if the last Parse() set option `name` from the command line (not from --config).
   bool IsSet(const std::string& name) const;
   std::string Usage() const;
-  // "name = value" lines, for options.ini.
+  // Option `name` changes what the command prints, not what it writes (`--pixel`): options.ini
+  // records it as a comment line, which neither the options digest nor --config reads, so the
+  // digest of a run with it equals the run's without it.
+  void MarkDiagnostic(const std::string& name);
+  // "name = value" lines, for options.ini; diagnostic options as "# name = value" lines.
   std::string ToIni() const;
 
  private:
@@ -41,6 +45,7 @@ class OptionParser {
     std::string name, help, kind;
     std::function<bool(const std::string&)> set;
     std::function<std::string()> get;
+    bool diagnostic = false;
   };
   struct Positional {
     std::string name, help;

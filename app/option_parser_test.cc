@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "thinslab/core/file.h"
+#include "thinslab/core/provenance.h"
 #include "tests/testing/temp_dir.h"
 
 namespace thinslab {
@@ -68,6 +69,27 @@ TEST(DigestTest, IsStandardFnv1a64) {
   EXPECT_EQ(Digest(""), "cbf29ce484222325");
   EXPECT_EQ(Digest("a"), "af63dc4c8601ec8c");
   EXPECT_EQ(Digest("foobar"), "85944171f73967e8");
+}
+
+// A diagnostic option is written as a comment, and the digest reads no comment line.
+TEST(OptionParser, DiagnosticOptionsAreCommentsOutsideTheDigest) {
+  OptionParser parser("fit test");
+  double x = 1;
+  std::string pixel;
+  parser.AddDouble("x", &x, "");
+  parser.AddString("pixel", &pixel, "");
+  parser.MarkDiagnostic("pixel");
+  ASSERT_TRUE(ParseArgs(&parser, {"--x", "2"}).ok());
+  const std::string plain = parser.ToIni();
+  ASSERT_TRUE(ParseArgs(&parser, {"--x", "2", "--pixel", "3,4"}).ok());
+  const std::string traced = parser.ToIni();
+  EXPECT_NE(traced.find("# pixel = 3,4"), std::string::npos) << traced;
+  EXPECT_NE(plain, traced);
+  EXPECT_EQ(OptionsDigest(plain), OptionsDigest(traced));
+  ASSERT_TRUE(ParseArgs(&parser, {"--x", "3"}).ok());
+  EXPECT_NE(OptionsDigest(parser.ToIni()), OptionsDigest(plain));
+  EXPECT_EQ(OptionsDigest("# any header\nx = 2\n"), OptionsDigest("x = 2\n"));
+  EXPECT_EQ(OptionsDigest("x = 2\n"), "fnv1a64:" + Digest("x = 2\n"));
 }
 
 // --config FILE: an options.ini written by ToIni() repeats the run; the command line overrides it.

@@ -18,7 +18,19 @@ std::string& CommandLineStorage() {
 void SetCommandLine(const std::string& command_line) { CommandLineStorage() = command_line; }
 const std::string& CommandLine() { return CommandLineStorage(); }
 
-std::string OptionsDigest(const std::string& options_ini) { return "fnv1a64:" + Digest(options_ini); }
+std::string OptionsDigest(const std::string& options_ini) {
+  // Comment lines (the header naming the command, diagnostic options) are not options.
+  std::string settings;
+  size_t start = 0;
+  while (start < options_ini.size()) {
+    size_t end = options_ini.find('\n', start);
+    if (end == std::string::npos) end = options_ini.size() - 1;
+    const size_t first = options_ini.find_first_not_of(" \t", start);
+    if (first > end || options_ini[first] != '#') settings.append(options_ini, start, end + 1 - start);
+    start = end + 1;
+  }
+  return "fnv1a64:" + Digest(settings);
+}
 
 void StampProvenance(const Provenance& provenance, Image* image) {
   auto& a = image->attributes();

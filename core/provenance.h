@@ -28,7 +28,8 @@ struct Provenance {
 void SetCommandLine(const std::string& command_line);
 const std::string& CommandLine();
 
-// "fnv1a64:<16 hex digits>" of options.ini: equal digests, equal options.
+// "fnv1a64:<16 hex digits>" of the lines of options.ini that are not comments (header,
+// diagnostic options): equal digests, equal options.
 std::string OptionsDigest(const std::string& options_ini);
 
 // Header attributes of an output EXR: format_version, thinslab_version, git_hash,

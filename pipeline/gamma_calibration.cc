@@ -56,7 +56,7 @@ Status CalibrateDisplayGamma(const CalibGammaRun& run, std::ostream& log) {
   j["session"] = session_dir;
   j["table"] = out;
   j["response"] = response_file.empty() ? "linear" : response_file;
-  j["options_digest"] = "fnv1a64:" + Digest(run.options_ini);
+  j["options_digest"] = OptionsDigest(run.options_ini);
   j["levels"] = summary.num_levels;
   j["darks"] = summary.num_darks;
   j["lit_pixels"] = summary.lit_pixels;

@@ -191,9 +191,17 @@ TEST(CliOutputFiles, EveryOutputFolderIsReadableByOtherProgramsAndCarriesItsProv
 
   // Issue #26 item 6: --pixel X,Y follows one map point through the fit, ending in the value
   // the map holds.
+  // --pixel changes what is printed, not what is written: the same options digest without it.
+  RunThinslabOk("fit tau " + shadow + " --out " + (dir / "traced"));
+  Image untraced_map;
+  ASSERT_TRUE(ReadExr(dir / "traced/tau.exr", &untraced_map).ok());
   const RunResult traced = RunThinslabOk("fit tau " + shadow + " --pixel 7,5 --out " + (dir / "traced"));
   Image traced_map;
   ASSERT_TRUE(ReadExr(dir / "traced/tau.exr", &traced_map).ok());
+  EXPECT_EQ(traced_map.attributes().at("options_digest"), untraced_map.attributes().at("options_digest"));
+  std::string traced_ini;
+  ASSERT_TRUE(ReadFileToString(dir / "traced/options.ini", &traced_ini).ok());
+  EXPECT_NE(traced_ini.find("# pixel = 7,5"), std::string::npos) << traced_ini;
   const size_t result = traced.output.find("  result: tau = ");
   ASSERT_NE(result, std::string::npos) << traced.output;
   EXPECT_NE(traced.output.find("pixel (7, 5): shadow "), std::string::npos);
