@@ -7,6 +7,7 @@
 //                  capture's frames of that dot), DN/us with the black level and darks removed
 //   summary.json   per dot: dot_px, measured, pixels, relative_rms, noise_relative_rms
 //   summary.txt
+//   options.ini    the effective options (their digest is the outputs' options_digest)
 #include <iostream>
 
 #include "thinslab/app/calibration_options.h"
@@ -34,6 +35,7 @@ int RunPredict(int argc, char** argv) {
     std::cout << parser.Usage();
     return 0;
   }
+  run.options_ini = parser.ToIni();
   if (status.ok()) status = PredictCapture(run, std::cout);
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";

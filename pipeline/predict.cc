@@ -88,8 +88,11 @@ Status PredictCapture(const PredictCaptureRun& run, std::ostream& log) {
   if (out_dir.empty()) out_dir = JoinPath(JoinPath(session_dir, "fit"), "predict");
   StagedDirectory out(out_dir, "predict", {{session_dir, {"fit"}}, {fit_dir, {}}});
   THINSLAB_RETURN_IF_ERROR(out.Init());
+  if (!run.options_ini.empty()) {
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
+  }
   if (kind != "dmf") {
-    const PredictRun layer{session_dir, fit_dir, out_dir, calibration_options};
+    const PredictRun layer{session_dir, fit_dir, out_dir, calibration_options, run.options_ini};
     return kind == "tau" ? PredictShadowFromTau(layer, session, &out) : PredictLobeFromPhase(layer, session, &out);
   }
   const std::string manifest = JoinPath(session_dir, kSessionManifestName);
@@ -118,7 +121,8 @@ Status PredictCapture(const PredictCaptureRun& run, std::ostream& log) {
   THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(session_dir, session, camera, &noise));
   std::ostringstream dots_option;
   for (const Eigen::Vector2d& d : dots) dots_option << (dots_option.tellp() > 0 ? ";" : "") << d.x() << "," << d.y();
-  const Provenance provenance{"predict", session_dir, fit_dir, "dots = " + dots_option.str() + "\n"};
+  const Provenance provenance{"predict", session_dir, fit_dir,
+                              run.options_ini.empty() ? "dots = " + dots_option.str() + "\n" : run.options_ini};
   nlohmann::json entries = nlohmann::json::array();
   std::ostringstream txt;
   txt << "thinslab predict: " << dots.size() << " dots from " << fit_dir << " (NDF atlas stride " << fit.atlas_stride

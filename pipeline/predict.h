@@ -24,6 +24,9 @@ struct PredictCaptureRun {
   std::string dots;         // "x,y;x,y" [monitor px] for dot scans; "" = the capture's validation dots.
   SessionCalibrationOptions calibration;
   bool allow_incomplete_capture = false;
+  // The command's effective options (OptionParser::ToIni), written as OUT/options.ini; their
+  // digest is the outputs' options_digest. "" (library callers): the resolved dots stand in.
+  std::string options_ini;
 };
 Status PredictCapture(const PredictCaptureRun& run, std::ostream& log);
 

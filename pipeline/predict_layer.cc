@@ -47,8 +47,10 @@ Status TauGrid(const Image& tau, const std::string& path, Eigen::Vector2d* regio
   return Status::Ok();
 }
 
-// Predict has no options but its inputs: the provenance names the capture and the fit.
-Provenance PredictProvenance(const PredictRun& run) { return {"predict", run.session_dir, run.fit_dir, ""}; }
+// The provenance names the capture, the fit and the command's options.
+Provenance PredictProvenance(const PredictRun& run) {
+  return {"predict", run.session_dir, run.fit_dir, run.options_ini};
+}
 
 // The fields every predict summary.json starts with.
 nlohmann::json PredictSummaryHead(const PredictRun& run, const std::string& kind, bool validation, int frames) {

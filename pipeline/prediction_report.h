@@ -38,6 +38,7 @@ std::string LobeBandsText(const LobePrediction& prediction);
 struct PredictRun {
   std::string session_dir, fit_dir, out_dir;
   SessionCalibrationOptions calibration;
+  std::string options_ini;  // PredictCaptureRun::options_ini.
 };
 Status PredictShadowFromTau(const PredictRun& run, const Session& session, StagedDirectory* out);
 Status PredictLobeFromPhase(const PredictRun& run, const Session& session, StagedDirectory* out);

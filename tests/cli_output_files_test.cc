@@ -176,6 +176,10 @@ TEST(CliOutputFiles, EveryOutputFolderIsReadableByOtherProgramsAndCarriesItsProv
   CheckOutputFolder(dots + "/fit/dmf", "fit dmf", 3);  // maps, ndf_atlas, ladder.
   CheckOutputFolder(dir / "predict_dots", "predict", 2);
   CheckOutputFolder(dir / "layer", "synth layer", 1);
+  // predict writes its options.ini too (the digest checks above then compare against it).
+  for (const char* folder : {"predict_shadow", "predict_lobe", "predict_dots"}) {
+    EXPECT_TRUE(FileExists(JoinPath(dir / folder, "options.ini"))) << folder;
+  }
   std::string command, digest;
   CheckExr(shadow + "/calib/flat_field.exr", &command, &digest);
   EXPECT_EQ(command, "calib flat");
