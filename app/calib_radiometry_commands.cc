@@ -50,6 +50,7 @@ int RunCalibResponse(int argc, char** argv) {
     std::cout << parser.Usage();
     return 0;
   }
+  run.options_ini = parser.ToIni();
   if (status.ok()) status = CalibrateResponse(run, std::cout);
   return status.ok() ? 0 : Fail(status);
 }

@@ -154,9 +154,12 @@ Status ResponseFromJson(const std::string& text, const std::string& path, Camera
   return Status::Ok();
 }
 
-Status WriteResponse(const std::string& path, const CameraResponse& response) {
+Status WriteResponse(const std::string& path, const CameraResponse& response, const std::string& provenance_json) {
   THINSLAB_RETURN_IF_ERROR(response.Validate().WithContext(path));
-  return WriteFileAtomically(path, ResponseToJson(response));
+  if (provenance_json.empty()) return WriteFileAtomically(path, ResponseToJson(response));
+  nlohmann::ordered_json j = nlohmann::ordered_json::parse(ResponseToJson(response));
+  j["provenance"] = nlohmann::ordered_json::parse(provenance_json);
+  return WriteFileAtomically(path, j.dump(1) + "\n");
 }
 
 Status ReadResponse(const std::string& path, CameraResponse* response) {

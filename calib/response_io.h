@@ -49,7 +49,9 @@ struct CameraResponse {
 // version and any violated constraint, naming the file and field.
 std::string ResponseToJson(const CameraResponse& response);
 Status ResponseFromJson(const std::string& text, const std::string& path_for_errors, CameraResponse* response);
-Status WriteResponse(const std::string& path, const CameraResponse& response);  // Atomic.
+// Atomic. `provenance_json`: a JSON object written as the file's "provenance" (readers ignore
+// it); "" for none.
+Status WriteResponse(const std::string& path, const CameraResponse& response, const std::string& provenance_json = "");
 Status ReadResponse(const std::string& path, CameraResponse* response);
 
 }  // namespace thinslab

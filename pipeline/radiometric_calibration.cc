@@ -216,7 +216,9 @@ Status CalibrateResponse(const CalibResponseRun& run, std::ostream& log) {
   if (!status.ok()) return status;
   response.camera_id = camera->id;
   status = CreateParentFolder(out);
-  if (status.ok()) status = WriteResponse(out, response);
+  if (status.ok()) {
+    status = WriteResponse(out, response, ProvenanceJson({"calib response", session_dir, "", run.options_ini}).dump());
+  }
   if (!status.ok()) return status;
   log << "bracket '" << group.name << "': " << frames.size() << " exposures, " << group.frames.size()
             << " frames\n" << summary.BriefReport() << "\nwrote " << out << "\n";

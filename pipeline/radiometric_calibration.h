@@ -26,6 +26,7 @@ struct CalibResponseRun {
   std::string camera_id;            // "" = the first camera.
   ResponseRecoveryOptions options;  // method and saturation/black level are set from the above.
   bool allow_incomplete_capture = false;
+  std::string options_ini;  // Its digest goes into response.json's provenance.
 };
 Status CalibrateResponse(const CalibResponseRun& run, std::ostream& log);
 

@@ -161,6 +161,13 @@ TEST(CliOutputFiles, EveryOutputFolderIsReadableByOtherProgramsAndCarriesItsProv
   RunThinslabOk("calib hdr " + shadow + " --kind reference");
   RunThinslabOk("calib flat " + shadow);
   RunThinslabOk("sim laser " + lobe + kSmallLaser);
+  // calib response: response.json carries the provenance object (and stays readable).
+  RunThinslabOk("calib response " + lobe + " --out " + (dir / "response.json"));
+  const nlohmann::json response = ReadJsonFile(dir / "response.json");
+  EXPECT_EQ(response["provenance"]["command"], "calib response");
+  EXPECT_EQ(response["provenance"]["format_version"], kOutputFormatVersion);
+  EXPECT_EQ(response["provenance"]["options_digest"].get<std::string>().rfind("fnv1a64:", 0), 0u);
+  RunThinslabOk("calib hdr " + lobe + " --response " + (dir / "response.json") + " --out " + (dir / "lobe_hdr"));
   RunThinslabOk("fit phase " + lobe);
   RunThinslabOk("predict " + lobe + " --out " + (dir / "predict_lobe"));
   RunThinslabOk("sim dot-scan " + dots + kSmallDots);
