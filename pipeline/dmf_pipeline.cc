@@ -285,8 +285,8 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   // Which model each point's maps hold: rung 5 (tabulated) unless the ladder replaced it
   // (ladder.exr channel rung).
   image.attributes()["ladder_applied"] = run.ladder && run.ladder_apply ? "true" : "false";
-  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), "maps.exr"), image, {"smith_alpha", {"status", "ndf_family", "rough_face"}},
-                                          provenance));
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out.path(), "maps.exr"), image,
+                                       {"smith_alpha", {"status", "ndf_family", "rough_face"}}, provenance));
 
   // NDF atlas: tiles in the orthographic projection of optics/dual_microfacet_btdf.h.
   const int n = maps.ndf_resolution;
@@ -419,7 +419,10 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
     roughness.push_back(f.roughness.roughness);
   }
   std::sort(roughness.begin(), roughness.end());
-  auto quantile = [&](double q) { return roughness.empty() ? nlohmann::json(nullptr) : nlohmann::json(roughness[static_cast<size_t>(q * (roughness.size() - 1))]); };
+  auto quantile = [&](double q) {
+    if (roughness.empty()) return nlohmann::json(nullptr);
+    return nlohmann::json(roughness[static_cast<size_t>(q * (roughness.size() - 1))]);
+  };
   const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - write_start).count();
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
