@@ -30,6 +30,7 @@
 #include "thinslab/core/file.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
+#include "thinslab/pipeline/capture_check.h"
 // The device back-ends this build has (CMake options THINSLAB_WITH_*; app/CMakeLists.txt).
 #if THINSLAB_WITH_ARAVIS
 #include "thinslab/drivers/aravis_camera.h"
@@ -76,7 +77,8 @@ std::string PeekOption(int argc, char** argv, const std::string& name, const std
 
 // The plan: kind plus every option except the ones naming devices, the folder or run control.
 std::string PlanText(const std::string& kind, const std::string& ini) {
-  static const char* kNotPlan[] = {"OUTPUT", "camera", "display", "laser", "resume", "quiet", "camera-timeout-s", "sim-realtime"};
+  static const char* kNotPlan[] = {"OUTPUT", "camera", "display", "laser", "resume", "quiet", "camera-timeout-s", "sim-realtime",
+                                   "check"};
   std::ostringstream plan;
   plan << kind;
   std::istringstream lines(ini);
@@ -176,6 +178,7 @@ struct CommonOptions {
   std::string laser;
   bool resume = false;
   bool quiet = false;
+  bool check = true;  // Run the session check (pipeline/capture_check.h) on the finished capture.
   bool sim_realtime = false;
   double camera_timeout_s = 2;
   // Real cameras (docs/cli.md): "" = the driver's default (Aravis Mono16, V4L2 the deepest
@@ -205,6 +208,8 @@ void AddCommonOptions(OptionParser* parser, CommonOptions* o, bool sim) {
   parser->AddString("laser", &o->laser, "USB laser trigger spec, e.g. hid-relay:16c0:05df:1 (docs/drivers.md)");
   parser->AddBool("resume", &o->resume, "continue the interrupted or failed session in OUTPUT");
   parser->AddBool("quiet", &o->quiet, "no progress on stderr");
+  parser->AddBool("check", &o->check,
+                  "check the finished capture (thinslab check: saturation, exposure, motion, flicker, geometry)");
   parser->AddDouble("camera-timeout-s", &o->camera_timeout_s, "real cameras: connect and frame timeout [s]");
   parser->AddInt("max-retries", &o->max_retries, "further attempts after a failed capture");
   parser->AddString("gamma-table", &o->gamma_table,
@@ -424,6 +429,17 @@ int Finish(const std::string& kind, const CommonOptions& common, const std::stri
             << (result.frames_on_disk_before > 0 ? ", " + std::to_string(result.frames_on_disk_before) + " kept from before"
                                                  : std::string())
             << ")\n";
+  if (common.check) {
+    // Before the sample leaves the rig: what the frames show (issue #28). The capture is written
+    // either way; `thinslab check` gives the verdict as its exit status.
+    CaptureCheck check;
+    const Status checked = CheckCapture(common.out, CaptureCheckOptions(), &check);
+    if (!checked.ok()) {
+      std::cerr << "error: session check: " << checked.message() << "\n";
+      return 1;
+    }
+    std::cout << check.Describe();
+  }
   return 0;
 }
 

@@ -21,6 +21,9 @@
 namespace thinslab {
 
 int RunInfo(int argc, char** argv);
+int RunCheck(int argc, char** argv);  // app/check_command.cc
+// `thinslab check`'s exit status for the verdict "retake" (and `thinslab acquire`'s check option).
+inline constexpr int kCheckRetakeExitCode = 3;
 int RunSim(int argc, char** argv);
 int RunFit(int argc, char** argv);
 int RunDemo(int argc, char** argv);

@@ -44,6 +44,8 @@ const std::vector<Command>& Commands() {
       {"help", RunHelp, "list the commands", nullptr},
       {"version", RunVersion, "print version, git hash and the data folder", nullptr},
       {"info", thinslab::RunInfo, "validate a capture session and summarise it", nullptr},
+      {"check", thinslab::RunCheck, "is a capture good enough to fit? (saturation, exposure, motion, flicker, geometry)",
+       nullptr},
       {"acquire", thinslab::RunAcquire, "run a capture session on a rig (default: the simulated rig)",
        thinslab::AcquireSubcommands},
       {"sim", thinslab::RunSim, "simulate a capture session", thinslab::SimSubcommands},

@@ -391,6 +391,20 @@ Status MergeExposureBracket(const std::vector<HdrFrame>& frames, const HdrMergeO
   return Status::Ok();
 }
 
+double DarkFrameReadNoise(const std::vector<Image>& darks, const CameraResponse* response) {
+  if (darks.empty()) return 0.5;
+  auto linear = [&](float v) { return response != nullptr ? response->Linearize(v) : static_cast<double>(v); };
+  const size_t n = darks[0].data().size();
+  double sum = 0, sum_sq = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double d = darks.size() >= 2 ? linear(darks[0].data()[i]) - linear(darks[1].data()[i]) : linear(darks[0].data()[i]);
+    sum += d;
+    sum_sq += d * d;
+  }
+  const double var = sum_sq / n - (sum / n) * (sum / n);
+  return std::sqrt(std::max(darks.size() >= 2 ? 0.5 * var : var, 0.25));
+}
+
 Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                            const std::vector<const FrameRecord*>& frames, const std::vector<const FrameRecord*>& darks,
                            const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
@@ -425,24 +439,11 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
     THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *d, &dark));
     dark_by_exposure[d->exposure_time_us].push_back(std::move(dark));
   }
-  // Read noise in linear DN from the shortest exposure's darks (least dark current and ambient
-  // shot noise): half the variance of the difference of two of them (no fixed pattern), or the
-  // spread of a single one.
   auto linear = [&](float v) { return response != nullptr ? response->Linearize(v) : static_cast<double>(v); };
   if (noise.variance_floor.has_value()) {
     info->read_noise_dn = std::sqrt(*noise.variance_floor);
   } else if (!dark_by_exposure.empty()) {
-    const std::vector<Image>& group = dark_by_exposure.begin()->second;
-    const size_t n = group[0].data().size();
-    double sum = 0, sum_sq = 0;
-    for (size_t i = 0; i < n; ++i) {
-      const double d = group.size() >= 2 ? linear(group[0].data()[i]) - linear(group[1].data()[i])
-                                         : linear(group[0].data()[i]);
-      sum += d;
-      sum_sq += d * d;
-    }
-    const double var = sum_sq / n - (sum / n) * (sum / n);
-    info->read_noise_dn = std::sqrt(std::max(group.size() >= 2 ? 0.5 * var : var, 0.25));
+    info->read_noise_dn = DarkFrameReadNoise(dark_by_exposure.begin()->second, response);
   } else {
     info->read_noise_dn = std::max(fallback_read_noise_dn, 0.5);
   }

@@ -124,6 +124,11 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
                            const FrameNoiseModel& noise, HdrImage* hdr, SessionMergeInfo* info,
                            ExposureCheckMode exposure_check = ExposureCheckMode::kNone);
 
+// Read noise in linear DN from dark frames of one exposure (the shortest has the least dark
+// current and ambient shot noise): half the variance of the difference of two of them (no fixed
+// pattern), or the spread of a single one; at least 0.5 DN (the quantisation of integer frames).
+double DarkFrameReadNoise(const std::vector<Image>& darks, const CameraResponse* response);
+
 // The hat weight of Debevec & Malik 1997 (Eq. 4) on black-subtracted z in [0, z_sat],
 // normalised to 1 at mid-range; 0 at and beyond both ends.
 double HatWeight(double z_dn, double saturation_dn);

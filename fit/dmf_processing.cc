@@ -52,20 +52,17 @@ Status CheckCalibratedDots(const RigMonitorCalibration& monitor, const std::vect
   return Status::Ok();
 }
 
-// Step 1 from the all-dots frames without the sample: the longest exposure with no saturated
-// dot, else the shortest in which the dots are found.
-Status MeasureDotGeometry(const std::string& session_dir, const Session& session, const CameraInfo& camera,
-                          const CameraResponse* response, const std::vector<Eigen::Vector2d>& displayed,
-                          const DmfProcessingOptions& options, DotGeometryResult* geometry,
-                          DmfProcessingReport* report) {
+}  // namespace
+
+Status MeasureAllDotsGeometry(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                              const CameraResponse* response, const std::vector<Eigen::Vector2d>& displayed,
+                              const DotGeometryOptions& options, DotGeometryResult* geometry, std::string* source_file) {
   const std::string manifest = JoinPath(session_dir, kSessionManifestName);
   const auto all_dots = session.UsableFrames("all_dots", "none");
   if (all_dots.empty()) {
     return Status::Error(manifest + ": no usable 'all_dots' frame with sample_state 'none': the dot positions " +
                          "cannot be calibrated (Dai et al. Sec. 4.1 locate them without the sample)");
   }
-  DotGeometryOptions geometry_options = options.dot_geometry;
-  geometry_options.dot_radius_px = report->dot_radius_px;
   std::vector<const FrameRecord*> by_exposure = all_dots;
   std::sort(by_exposure.begin(), by_exposure.end(),
             [](const FrameRecord* a, const FrameRecord* b) { return a->exposure_time_us > b->exposure_time_us; });
@@ -79,14 +76,13 @@ Status MeasureDotGeometry(const std::string& session_dir, const Session& session
     LinearizeFrame(response, &frame);
     DotGeometryResult g;
     const Status s = CalibrateDotGeometry(frame, f->exposure_time_us, linear_saturation, camera,
-                                          session.rig.monitor, displayed, geometry_options, &g);
+                                          session.rig.monitor, displayed, options, &g);
     if (!s.ok()) {
       geometry_error = f->file + ": " + s.message();
       continue;
     }
     *geometry = g;
-    report->dot_geometry_source = f->file;
-    report->dots_found_by_grid_prior = g.num_found_by_grid_prior;
+    *source_file = f->file;
     have_geometry = true;
     if (std::none_of(g.dots.begin(), g.dots.end(), [](const DotRecord& d) { return d.measured() && d.saturated; })) break;
   }
@@ -94,13 +90,15 @@ Status MeasureDotGeometry(const std::string& session_dir, const Session& session
   if (std::none_of(geometry->dots.begin(), geometry->dots.end(),
                    [](const DotRecord& d) { return d.measured() && !d.saturated; })) {
     // The dots were found only in frames where they saturate; say why the shorter ones failed.
-    return Status::Error("dot geometry: every dot is saturated in " + report->dot_geometry_source +
+    return Status::Error("dot geometry: every dot is saturated in " + *source_file +
                          ", the all-dots frame in which they were found, so L_q cannot be measured (the all-dots "
                          "bracket needs an exposure in which the dots are found and not saturated)" +
                          (geometry_error.empty() ? std::string() : "; in shorter exposures: " + geometry_error));
   }
   return Status::Ok();
 }
+
+namespace {
 
 }  // namespace
 
@@ -227,8 +225,12 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     geometry.distance_correction_m = calibrated.distance_correction_m;
     report->dot_geometry_source = report->calibration.rig_file;
   } else {
+    DotGeometryOptions geometry_options = options.dot_geometry;
+    geometry_options.dot_radius_px = report->dot_radius_px;
     THINSLAB_RETURN_IF_ERROR(
-        MeasureDotGeometry(session_dir, session, camera, response, displayed, options, &geometry, report));
+        MeasureAllDotsGeometry(session_dir, session, camera, response, displayed, geometry_options, &geometry,
+                               &report->dot_geometry_source));
+    report->dots_found_by_grid_prior = geometry.num_found_by_grid_prior;
   }
   std::vector<double> radiances;
   int missed_in_view = 0;

@@ -108,6 +108,14 @@ struct DmfProcessingReport {
 inline constexpr double kMaxDarkFractionOfRange = 0.2;
 inline constexpr int kDotsExposureChecked = 16;
 
+// Dot geometry and L_q from the capture's all-dots frames without the sample (Dai et al. Sec. 4.1):
+// the longest exposure with no saturated dot, else the shortest in which the dots are found
+// (`response`: linearisation, nullptr = linear). *source_file: the frame used. Errors: no
+// all-dots frame, no frame in which the dots are found, every dot saturated.
+Status MeasureAllDotsGeometry(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                              const CameraResponse* response, const std::vector<Eigen::Vector2d>& displayed,
+                              const DotGeometryOptions& options, DotGeometryResult* geometry, std::string* source_file);
+
 Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingOptions& options, DmfSliceSet* slices,
                             DmfProcessingReport* report);
 

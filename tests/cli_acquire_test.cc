@@ -386,6 +386,10 @@ TEST_F(CliAcquireTest, DotScanKilledMidScanAndResumedHasTheFramesOfAnUninterrupt
   ASSERT_TRUE(ReadSession(resumed, &killed).ok());
   EXPECT_EQ(killed.acquisition.state, "running");
   EXPECT_LT(killed.frames.size(), static_cast<size_t>(frames_at_kill)) << "the journal was not needed";
+  // The session check of the killed capture says to resume before the sample leaves the rig.
+  const RunResult check = RunThinslab("check " + resumed);
+  EXPECT_EQ(check.exit_code, 3) << check.output;
+  EXPECT_NE(check.output.find("retake [incomplete]: the acquisition did not finish"), std::string::npos) << check.output;
   const RunResult again = RunThinslab(args(resumed) + " --resume");
   ASSERT_EQ(again.exit_code, 0) << again.output;
 

@@ -502,6 +502,13 @@ std::vector<Case> Cases() {
         {"frames[0].exposure_time_us"}),
       C("info_frame_missing", "shadow", BreakFrame("shadow", F::kMissing), "info {in}", {"frames/cam0/shadow/"}),
       C("info_frame_truncated", "shadow", BreakFrame("shadow", F::kTruncated), "info {in}", {"frames/cam0/shadow/"}),
+      // ---- thinslab check (issue #28): the same reader, its options and its JSON output ----
+      C("check_no_such_folder", "", none, "check {case}/nothing", {"{case}/nothing"}),
+      C("check_manifest_not_json", "shadow", Write("{in}/session.json", "{\"format\": "), "check {in}", {"session.json"}),
+      C("check_frame_truncated", "shadow", BreakFrame("shadow", F::kTruncated), "check {in}", {"frames/cam0/shadow/"}),
+      C("check_fraction_above_1", "shadow", none, "check {in} --max-saturated-fraction 1.5",
+        {"max_saturated_fraction", "1.5"}),
+      C("check_json_over_the_manifest", "shadow", none, "check {in} --json {in}/session.json", {"session.json"}),
       C("info_frame_empty", "shadow", BreakFrame("shadow", F::kEmpty), "info {in}", {"frames/cam0/shadow/"}),
       C("info_frame_is_directory", "shadow", BreakFrame("shadow", F::kDirectory), "info {in}", {"frames/cam0/shadow/"}),
       C("info_frame_symlink_outside", "shadow", BreakFrame("shadow", F::kSymlinkOutside), "info {in}",
