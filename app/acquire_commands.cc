@@ -14,6 +14,8 @@
 #include <chrono>
 #include <cmath>
 #include <csignal>
+#include <cstring>
+#include <iomanip>
 #include <thread>
 #include <iostream>
 #include <memory>
@@ -21,6 +23,7 @@
 
 #include "thinslab/acquire/display_gamma_session.h"
 #include "thinslab/acquire/dot_scan_session.h"
+#include "thinslab/acquire/exposure_plan.h"
 #include "thinslab/acquire/laser_lobe_session.h"
 #include "thinslab/acquire/session_journal.h"
 #include "thinslab/acquire/shadow_map_session.h"
@@ -648,7 +651,9 @@ int AcquireLaser(int argc, char** argv, bool sim) {
 
 // Options shared by dot-scan and bracket: the bracket and the synchronisation rule.
 void AddBracketOptions(OptionParser* parser, ExposureBracketOptions* bracket, std::string* exposures) {
-  parser->AddString("exposures-us", exposures, "exposures, comma-separated [us] (default: geometric min..max)");
+  parser->AddString("exposures-us", exposures,
+                    "exposures, comma-separated [us] (default: geometric min..max); dot-scan: auto = planned from a "
+                    "probe of the rig within min..max");
   parser->AddDouble("min-exposure-us", &bracket->min_exposure_us, "shortest exposure of the geometric bracket [us]");
   parser->AddDouble("max-exposure-us", &bracket->max_exposure_us, "longest exposure of the geometric bracket [us]");
   parser->AddInt("exposure-steps", &bracket->steps, "exposures in the geometric bracket");
@@ -703,6 +708,54 @@ Status ApplySimDisplay(const SimDisplayText& display, SimDotMonitorOptions* moni
 }
 
 enum class DisplayKind { kDotScan, kBracket, kGamma };
+
+constexpr char kPlannedExposuresKey[] = "; planned-exposures-us = ";
+
+// `--exposures-us auto` (issue #28, item 2): the bracket from a probe of the rig
+// (acquire/exposure_plan.h), appended to the plan text (session.json acquisition.plan) with the
+// reasons. A resume takes the exposures and reasons of the run it continues, without probing.
+Status PlanDotScanBracket(const CommonOptions& common, DotScanSessionOptions& dots, Camera* camera,
+                          Projector* projector, const SampleChanger& change, double refresh_period_s,
+                          std::string* plan) {
+  std::string planned;
+  if (common.resume && FileExists(JoinPath(common.out, kSessionManifestName))) {
+    Session previous;
+    THINSLAB_RETURN_IF_ERROR(ReadSessionWithJournal(common.out, &previous));
+    const size_t at = previous.acquisition.plan.find(kPlannedExposuresKey);
+    if (at == std::string::npos) {
+      return Status::Error(common.out + ": the session to resume was not planned with --exposures-us auto");
+    }
+    planned = previous.acquisition.plan.substr(at);
+    const size_t list = strlen(kPlannedExposuresKey), end = planned.find(';', list);
+    THINSLAB_RETURN_IF_ERROR(ParseExposureList(planned.substr(list, end - list), "planned-exposures-us",
+                                               &dots.bracket.exposures_us));
+  } else {
+    ExposurePlanOptions options;
+    options.max_exposure_us = dots.bracket.max_exposure_us;
+    options.min_exposure_us = dots.bracket.min_exposure_us;
+    // Probe dots: the grid's centre and the centres of its four quadrants.
+    const std::vector<Eigen::Vector2d> grid = DotScanGrid(dots);
+    std::vector<Eigen::Vector2d> probe;
+    for (const auto& [fx, fy] : std::vector<std::pair<double, double>>{{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75}, {0.75, 0.75}}) {
+      const int i = static_cast<int>(std::lround(fx * (dots.grid_nx - 1)));
+      const int j = static_cast<int>(std::lround(fy * (dots.grid_ny - 1)));
+      probe.push_back(grid.at(static_cast<size_t>(j * dots.grid_nx + i)));
+    }
+    ExposurePlan result;
+    THINSLAB_RETURN_IF_ERROR(ProbeAndPlanDotScanExposures(camera, projector, change, DotScanGridPattern(dots), probe,
+                                                          dots.sample_state, refresh_period_s, options, &result));
+    dots.bracket.exposures_us = result.exposures_us;
+    std::ostringstream list;
+    list << std::setprecision(10);
+    for (size_t k = 0; k < result.exposures_us.size(); ++k) list << (k ? "," : "") << result.exposures_us[k];
+    std::string why = result.why;
+    std::replace(why.begin(), why.end(), ';', ',');  // The plan text separates its fields by ';'.
+    planned = kPlannedExposuresKey + list.str() + "; exposure-plan = " + why;
+  }
+  *plan += planned;
+  std::cout << "exposure plan:" << planned.substr(1) << "\n";
+  return Status::Ok();
+}
 
 // dot-scan, bracket and gamma: display-driven, synchronised sessions.
 int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
@@ -773,7 +826,10 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   }
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) return Help(parser);
-  if (status.ok() && !exposures.empty()) status = ParseExposureList(exposures, "exposures-us", &bracket.exposures_us);
+  const bool plan_exposures = dot_scan && exposures == "auto";
+  if (status.ok() && !exposures.empty() && !plan_exposures) {
+    status = ParseExposureList(exposures, "exposures-us", &bracket.exposures_us);
+  }
   if (status.ok() && sim) status = ApplySimDisplay(sim_display, &monitor);
   if (status.ok() && gamma && !common.gamma_table.empty()) {
     status = Status::Error("thinslab acquire gamma: option --gamma-table: the gamma measurement drives the display "
@@ -781,7 +837,7 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   }
   if (!status.ok()) return Fail(status);
   sync.max_retries = common.max_retries;
-  const std::string plan = PlanText(kind, parser.ToIni());
+  std::string plan = PlanText(kind, parser.ToIni());
 
   RealDevices devices;
   status = OpenRealDevices(common, &devices);
@@ -850,6 +906,10 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
                                 std::to_string(validation_dots)));
     }
     dots.validation_dots_px = DotScanValidationDots(dots, validation_dots);
+  }
+  if (plan_exposures) {
+    status = PlanDotScanBracket(common, dots, camera, &projector, change, display->refresh_period_s(), &plan);
+    if (!status.ok()) return Fail(status);
   }
   std::string error;
   const bool checked = dot_scan ? dots.Check(&error) : gamma ? gamma_session.Check(&error) : bracket_session.Check(&error);

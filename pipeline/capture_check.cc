@@ -369,7 +369,18 @@ class CaptureChecker {
       // The read noise, where the manifest and the data leave it open, from the shortest
       // exposure's darks as the HDR merge takes it.
       if (!context->noise.variance_floor.has_value()) {
-        context->noise.variance_floor = Sqr(DarkFrameReadNoise(raws, context->calibration.response_or_null()));
+        if (raws.size() >= 2) {
+          context->noise.variance_floor = Sqr(DarkFrameReadNoise(raws, context->calibration.response_or_null()));
+        } else {
+          // One dark: its fine-scale noise (Immerkaer's residual, calib/frame_noise.h), not its
+          // spread, which a display's glow or a fixed pattern would inflate.
+          NoiseSamples samples;
+          samples.AddSingleFrame(raws.front(), context->saturation, 1);
+          if (samples.residual.size() >= 200) {
+            const double sigma = RobustSigma(samples.residual, 0.0);
+            context->noise.variance_floor = std::max(Sqr(sigma), 0.25 * 0.25);
+          }
+        }
       }
       Image linear = sum;
       LinearizeFrame(context->calibration.response_or_null(), &linear);
@@ -468,17 +479,19 @@ class CaptureChecker {
     }
   }
 
+  // Peak: the brightest pixel in the longest exposure, in noise sigmas at its level.
   void MeasurePeak(const CameraContext& context, const std::vector<LoadedFrame>& frames, StateRecord* state) {
     const LoadedFrame& longest = frames.back();
     Eigen::Vector2i where(0, 0);
-    const double peak = BoxMax(longest.signal, 1, &where);
+    // The brightest pixel (a dot's image can be one pixel; hot pixels are in the dark subtracted).
+    const double peak = BoxMax(longest.signal, 0, &where);
     const double variance =
         context.noise.Variance(std::max(peak, 0.0)) + context.dark_variance(longest.record->exposure_time_us);
     state->lit = true;
     state->peak_sigmas = peak / std::sqrt(std::max(variance, 1e-30));
     Eigen::Vector2i raw_where(0, 0);
     state->range_fraction =
-        std::isfinite(context.saturation) ? std::min(1.0, BoxMax(longest.raw, 1, &raw_where) / context.saturation) : 0;
+        std::isfinite(context.saturation) ? std::min(1.0, BoxMax(longest.raw, 0, &raw_where) / context.saturation) : 0;
   }
 
   Status ComparePairs(const CameraContext& context, const std::vector<LoadedFrame>& frames, const StateRecord& state) {

@@ -1,0 +1,75 @@
+// SPDX-License-Identifier: Apache-2.0
+// Exposure planning from a probe (issue #28, item 2). A fixed bracket is right for one rig and
+// one sample: on a display whose black is not black, the screen's glow seen through the sample
+// fills most of the range in the long exposure a rough lobe's tails need, so the lobes saturate
+// and drown (docs/known_gaps.md: 11 of 100 dot-scan points fitted instead of 26). Before the
+// session a short probe measures, in DN per microsecond,
+//  - the brightest state the session will show (the all-dots frame without the sample: every
+//    dot seen directly, brighter than any dot through the sample),
+//  - the darkest (the display black with the sample in: the glow every dot frame carries), and
+//  - a few dots through the sample (their lobes' peaks),
+// and the bracket is chosen so that
+//  - the shortest exposure keeps the brightest peak at `peak_fill` of the range,
+//  - the longest lets the dimmest probed lobe's edge (edge_fraction of its peak) clear
+//    `edge_sigmas` noise sigmas (shot noise of the lobe and the glow, read noise), but keeps the
+//    glow below max_dark_fraction of the range and stays within max_exposure_us,
+//  - neighbouring exposures are at most max_step_ratio apart (a pixel that saturates in one
+//    is above 1/max_step_ratio of the range in the next shorter),
+// all whole refresh periods of the display.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "thinslab/acquire/exposure_bracket.h"
+#include "thinslab/acquire/sample_changer.h"
+#include "thinslab/core/status.h"
+#include "thinslab/drivers/camera.h"
+#include "thinslab/drivers/display.h"
+
+namespace thinslab {
+
+struct ExposurePlanOptions {
+  double peak_fill = 0.5;          // Brightest peak in the shortest exposure, fraction of the range.
+  double max_dark_fraction = 0.1;  // Glow (99th percentile of the black frame) in the longest.
+  double edge_fraction = 0.05;     // A lobe's edge, fraction of its peak (the fit's alpha lobe core).
+  double edge_sigmas = 10;         // Its signal to noise in the longest exposure.
+  double min_exposure_us = 0;      // Floor of the shortest (0: one refresh period, or 1 us).
+  double max_exposure_us = 1e7;    // Cap of the longest.
+  double max_step_ratio = 16;
+  double probe_exposure_us = 0;    // First probe exposure (0: one refresh period, or 1000 us).
+  int settle_captures = 3;         // Captures per probe state; the last is measured.
+  bool Check(std::string* error) const;
+};
+
+// One probed state and what it showed.
+struct ProbeMeasurement {
+  std::string label;           // "all dots without the sample", "black display", "dot (x, y)".
+  double exposure_us = 0;      // The probe frame's exposure (unsaturated, or the shortest tried).
+  double peak_dn_per_us = 0;   // Brightest pixel (bright states) or 99th percentile (black).
+  bool saturated = false;      // Even the shortest probe exposure saturated: a lower bound.
+};
+
+struct ExposurePlan {
+  std::vector<double> exposures_us;  // Ascending, whole refresh periods.
+  std::vector<ProbeMeasurement> probes;
+  std::string why;                   // One paragraph: which state set which end and by how much.
+};
+
+// Chooses the bracket from measured probes (pure; tested without devices). `brightest`: the
+// brightest state; `black`: the darkest (may have peak 0); `lobes`: dots through the sample
+// (may be empty: then the longest is the glow limit or the cap). `camera`: saturation, black
+// level and gain (1 e-/DN when unknown) of the frames.
+Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& black,
+                     const std::vector<ProbeMeasurement>& lobes, const CameraInfo& camera, double refresh_period_s,
+                     const ExposurePlanOptions& options, ExposurePlan* plan);
+
+// The probe on the devices: the all-dots pattern without the sample, the display black and
+// `probe_dots` with the sample in `sample_state`, each at the probe exposure (halved while the
+// peak saturates), then PlanExposures. Leaves the display black. Errors name the device.
+Status ProbeAndPlanDotScanExposures(Camera* camera, Projector* projector, const SampleChanger& change_sample,
+                                    const std::string& all_dots_pattern, const std::vector<Eigen::Vector2d>& probe_dots,
+                                    const std::string& sample_state, double refresh_period_s,
+                                    const ExposurePlanOptions& options, ExposurePlan* plan);
+
+}  // namespace thinslab
