@@ -29,27 +29,28 @@ bool FramePairOptions::Check(std::string* error) const {
   return false;
 }
 
-Status CompareFramePair(const Image& a, const Image& b, double expected_ratio, const FrameNoiseModel& noise,
-                        double extra_variance, double saturation, const FramePairOptions& options,
-                        FramePairComparison* comparison) {
+Status CompareFramePair(const Image& a, const Image& b, const Image& var_a, const Image& var_b, double expected_ratio,
+                        double saturation, const FramePairOptions& options, FramePairComparison* comparison) {
   *comparison = FramePairComparison();
   std::string error;
   if (!options.Check(&error)) return Status::Error(error);
-  if (a.width() != b.width() || a.height() != b.height() || a.num_channels() != 1 || b.num_channels() != 1) {
+  if (a.width() != b.width() || a.height() != b.height() || a.num_channels() != 1 || b.num_channels() != 1 ||
+      var_a.data().size() != a.data().size() || var_b.data().size() != b.data().size()) {
     return Status::Error("CompareFramePair: frames of different sizes or channel counts");
   }
   if (!(expected_ratio >= 1) || !std::isfinite(expected_ratio)) {
     return Status::Error("CompareFramePair: expected_ratio must be >= 1 (b the longer exposure)");
   }
-  const double zero_sigma = std::sqrt(noise.Variance(0) + extra_variance);
-  // Without a floor (a noise model of shot noise only), one unit of value stands for it.
-  const double min_signal = options.min_signal_sigmas * (zero_sigma > 0 ? zero_sigma : 1.0);
   const double clip = options.max_saturation_fraction * saturation;
   std::vector<int> pixels;
   for (size_t i = 0; i < a.data().size(); ++i) {
     const double va = a.data()[i], vb = b.data()[i];
     if (!std::isfinite(va) || !std::isfinite(vb)) continue;
-    if (vb > min_signal * expected_ratio && va > 0 && va < clip && vb < clip) pixels.push_back(static_cast<int>(i));
+    if (!std::isfinite(var_a.data()[i]) || !std::isfinite(var_b.data()[i])) continue;  // Clipped.
+    const double a_sigma = std::sqrt(std::max(static_cast<double>(var_a.data()[i]), 0.0));
+    if (vb > options.min_signal_sigmas * a_sigma * expected_ratio && a_sigma > 0 && va > 0 && va < clip && vb < clip) {
+      pixels.push_back(static_cast<int>(i));
+    }
   }
   if (static_cast<int>(pixels.size()) < options.min_pixels) return Status::Ok();
   // Equal-count bins of a's level, each with its own median ratio.
@@ -65,8 +66,8 @@ Status CompareFramePair(const Image& a, const Image& b, double expected_ratio, c
     all_ratios.insert(all_ratios.end(), ratios.begin(), ratios.end());
     const double k = Median(std::move(ratios));
     for (size_t p = begin; p < end; ++p) {
-      const double va = a.data()[pixels[p]], vb = b.data()[pixels[p]];
-      const double variance = noise.Variance(vb) + k * k * noise.Variance(va) + (1 + k * k) * extra_variance;
+      const double vb = b.data()[pixels[p]], va = a.data()[pixels[p]];
+      const double variance = var_b.data()[pixels[p]] + k * k * var_a.data()[pixels[p]];
       if (std::abs(vb - k * va) > options.outlier_sigmas * std::sqrt(std::max(variance, 1e-30))) ++outliers;
     }
   }

@@ -6,17 +6,18 @@
 // brightness as a whole. Both are what the operator must know before the sample leaves the rig
 // (issue #28), and neither can be seen in one frame.
 //
-// On the pixels where both frames are well exposed (b and b / expected_ratio, a's expected value,
-// min_signal_sigmas above the noise at zero; chosen on b, so that a's own noise does not choose
-// them) and neither frame is near saturation, the ratio k = b / a is measured per signal
-// level (equal-count bins of a; a camera response left unlinearised bends k with the level, a
-// flicker does not), and each pixel's residual b - k(level) a is divided by its noise
-// sqrt(var_b + k^2 var_a) from the frame noise model (calib/frame_noise.h). A moved scene puts
+// On the pixels where both frames are well exposed (b / expected_ratio, a's expected value,
+// min_signal_sigmas above a's noise; chosen on b, so that a's own noise does not choose them)
+// and neither frame is near saturation, the ratio k = b / a is measured per signal level
+// (equal-count bins of a; a camera response left unlinearised bends k with the level, a flicker
+// does not), and each pixel's residual b - k(level) a is divided by its noise sqrt(var_b +
+// k^2 var_a). The variances are per pixel (the caller's: the frame noise model of
+// calib/frame_noise.h at the raw level, which includes a display's glow, plus the subtracted
+// dark's). A moved scene puts
 // many pixels beyond outlier_sigmas; a flicker moves the median k away from the one the
 // bracket's other states show.
 #pragma once
 
-#include "thinslab/calib/frame_noise.h"
 #include "thinslab/core/image.h"
 #include "thinslab/core/status.h"
 
@@ -40,12 +41,10 @@ struct FramePairComparison {
 };
 
 // `a`, `b`: linear, dark-subtracted values of the same size (b the longer exposure, or a repeat;
-// expected_ratio = t_b / t_a >= 1);
-// `noise` their noise model (variance of a frame value at its level, `extra_variance` added for
-// the dark subtracted from each); `saturation`: the level at which a value clips (+inf: never).
-// Errors: sizes differ, options invalid.
-Status CompareFramePair(const Image& a, const Image& b, double expected_ratio, const FrameNoiseModel& noise,
-                        double extra_variance, double saturation, const FramePairOptions& options,
-                        FramePairComparison* comparison);
+// expected_ratio = t_b / t_a >= 1), `var_a`, `var_b` their per-pixel variances (not finite:
+// clipped, left out); `saturation`:
+// the level at which a value clips (+inf: never). Errors: sizes differ, options invalid.
+Status CompareFramePair(const Image& a, const Image& b, const Image& var_a, const Image& var_b, double expected_ratio,
+                        double saturation, const FramePairOptions& options, FramePairComparison* comparison);
 
 }  // namespace thinslab

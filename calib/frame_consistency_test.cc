@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/calib/frame_consistency.h"
 
+#include "thinslab/calib/frame_noise.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -38,9 +40,17 @@ FrameNoiseModel Noise() {
   return model;
 }
 
+// Per-pixel variances from the noise model at each frame's own values.
+Image Variance(const Image& frame) {
+  Image variance = frame;
+  for (float& v : variance.data()) v = static_cast<float>(Noise().Variance(v));
+  return variance;
+}
+
 FramePairComparison Compare(const Image& a, const Image& b, double expected_ratio = 1) {
   FramePairComparison comparison;
-  EXPECT_TRUE(CompareFramePair(a, b, expected_ratio, Noise(), 0, 4095, FramePairOptions(), &comparison).ok());
+  EXPECT_TRUE(
+      CompareFramePair(a, b, Variance(a), Variance(b), expected_ratio, 4095, FramePairOptions(), &comparison).ok());
   return comparison;
 }
 
@@ -95,10 +105,10 @@ TEST(FrameConsistency, PixelsTheShortFrameCannotResolveAreNotCompared) {
 
 TEST(FrameConsistency, BadInputIsAnError) {
   FramePairComparison c;
-  EXPECT_FALSE(CompareFramePair(Image(4, 4), Image(5, 4), 1, Noise(), 0, 4095, FramePairOptions(), &c).ok());
+  EXPECT_FALSE(CompareFramePair(Image(4, 4), Image(5, 4), Image(4, 4), Image(5, 4), 1, 4095, FramePairOptions(), &c).ok());
   FramePairOptions options;
   options.outlier_sigmas = 0;
-  const Status s = CompareFramePair(Image(4, 4), Image(4, 4), 1, Noise(), 0, 4095, options, &c);
+  const Status s = CompareFramePair(Image(4, 4), Image(4, 4), Image(4, 4), Image(4, 4), 1, 4095, options, &c);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.message().find("FramePairOptions::outlier_sigmas"), std::string::npos);
 }

@@ -209,13 +209,9 @@ struct CameraContext {
   std::map<double, Image> dark_raw;   // Mean dark frame per exposure, raw black-subtracted.
   std::map<double, Image> dark_linear;
   std::map<double, int> dark_count;
-  double dark_variance(double exposure_us) const {
-    const auto it = dark_count.find(exposure_us);
-    return it == dark_count.end() ? 0.0 : noise.Variance(0) / it->second;
-  }
 };
 
-// The 3 x 3 (or 5 x 5) box mean's largest value and where.
+// The (2 radius + 1)^2 box mean's largest value and where.
 double BoxMax(const Image& image, int radius, Eigen::Vector2i* where) {
   double best = -kInf;
   for (int y = radius; y < image.height() - radius; ++y) {
@@ -249,6 +245,7 @@ double BoxMean(const Image& image, int x, int y, int radius) {
 struct LoadedFrame {
   const FrameRecord* record;
   Image raw, signal;
+  Image variance;  // Of `signal`: the noise model at the raw level (glow included) plus the dark's.
 };
 
 // Per pixel the longest unsaturated exposure's signal / exposure (an HDR merge without weights):
@@ -418,13 +415,25 @@ class CaptureChecker {
     });
     frames->clear();
     for (const FrameRecord* f : records) {
-      LoadedFrame loaded{f, Image(), Image()};
+      LoadedFrame loaded{f, Image(), Image(), Image()};
       THINSLAB_RETURN_IF_ERROR(LoadFrame(dir_, session_, *f, &loaded.raw));
       loaded.signal = loaded.raw;
       LinearizeFrame(context.calibration.response_or_null(), &loaded.signal);
+      loaded.variance = loaded.signal;
+      for (float& v : loaded.variance.data()) v = static_cast<float>(context.noise.Variance(v));
+      // A raw value near saturation is clipped whatever the dark under it: no variance, so that
+      // no comparison or peak takes it (the signal alone would not show it).
+      const double clip = options_.pair.max_saturation_fraction * context.saturation;
+      for (size_t i = 0; i < loaded.raw.data().size(); ++i) {
+        if (loaded.raw.data()[i] >= clip) loaded.variance.data()[i] = std::numeric_limits<float>::quiet_NaN();
+      }
       const auto dark = context.dark_linear.find(f->exposure_time_us);
       if (dark != context.dark_linear.end() && dark->second.data().size() == loaded.signal.data().size()) {
-        for (size_t i = 0; i < loaded.signal.data().size(); ++i) loaded.signal.data()[i] -= dark->second.data()[i];
+        const int n = context.dark_count.at(f->exposure_time_us);
+        for (size_t i = 0; i < loaded.signal.data().size(); ++i) {
+          loaded.signal.data()[i] -= dark->second.data()[i];
+          loaded.variance.data()[i] += static_cast<float>(context.noise.Variance(dark->second.data()[i]) / n);
+        }
       }
       frames->push_back(std::move(loaded));
     }
@@ -482,13 +491,21 @@ class CaptureChecker {
   // Peak: the brightest pixel in the longest exposure, in noise sigmas at its level.
   void MeasurePeak(const CameraContext& context, const std::vector<LoadedFrame>& frames, StateRecord* state) {
     const LoadedFrame& longest = frames.back();
-    Eigen::Vector2i where(0, 0);
     // The brightest pixel (a dot's image can be one pixel; hot pixels are in the dark subtracted).
-    const double peak = BoxMax(longest.signal, 0, &where);
-    const double variance =
-        context.noise.Variance(std::max(peak, 0.0)) + context.dark_variance(longest.record->exposure_time_us);
+    // Over the unclipped pixels; a state with clipped pixels has light enough (infinite sigmas).
+    double peak = -kInf, variance = 1;
+    bool clipped = false;
+    for (size_t i = 0; i < longest.signal.data().size(); ++i) {
+      const double v = longest.variance.data()[i];
+      if (!std::isfinite(v)) {
+        clipped = true;
+      } else if (longest.signal.data()[i] > peak) {
+        peak = longest.signal.data()[i];
+        variance = v;
+      }
+    }
     state->lit = true;
-    state->peak_sigmas = peak / std::sqrt(std::max(variance, 1e-30));
+    state->peak_sigmas = clipped ? kInf : peak / std::sqrt(std::max(variance, 1e-30));
     Eigen::Vector2i raw_where(0, 0);
     state->range_fraction =
         std::isfinite(context.saturation) ? std::min(1.0, BoxMax(longest.raw, 0, &raw_where) / context.saturation) : 0;
@@ -499,8 +516,7 @@ class CaptureChecker {
       const LoadedFrame &a = frames[k], &b = frames[k + 1];
       PairRecord pair{state.kind, state.state, a.record->exposure_time_us, b.record->exposure_time_us,
                       a.record->index, b.record->index, FramePairComparison()};
-      const double extra = std::max(context.dark_variance(pair.t_a), context.dark_variance(pair.t_b));
-      THINSLAB_RETURN_IF_ERROR(CompareFramePair(a.signal, b.signal, pair.t_b / pair.t_a, context.noise, extra,
+      THINSLAB_RETURN_IF_ERROR(CompareFramePair(a.signal, b.signal, a.variance, b.variance, pair.t_b / pair.t_a,
                                                 context.saturation, options_.pair, &pair.comparison)
                                    .WithContext("frames " + std::to_string(pair.frame_a) + " and " +
                                                 std::to_string(pair.frame_b)));
@@ -597,7 +613,6 @@ class CaptureChecker {
     }
     if (along.z() > -1e-6) return;
     const Image& signal = frames.back().signal;
-    const double sigma0 = std::sqrt(context.noise.Variance(0) + context.dark_variance(frames.back().record->exposure_time_us));
     constexpr int kGrid = 24;
     int lit = 0;
     for (int j = 0; j < kGrid; ++j) {
@@ -609,7 +624,10 @@ class CaptureChecker {
         if (!ProjectSamplePoint(context.camera, on_board, &pixel)) continue;
         const int x = static_cast<int>(std::floor(pixel.x())), y = static_cast<int>(std::floor(pixel.y()));
         if (x < 0 || y < 0 || x >= signal.width() || y >= signal.height()) continue;
-        lit += BoxMean(signal, x, y, 1) > options_.min_peak_sigmas / 2 * std::max(sigma0, 1e-30);
+        const double variance = frames.back().variance.at(x, y);
+        // Clipped (no variance): lit.
+        lit += !std::isfinite(variance) ||
+               BoxMean(signal, x, y, 1) > options_.min_peak_sigmas / 2 * std::sqrt(std::max(variance, 1e-30));
       }
     }
     const double fraction = static_cast<double>(lit) / (kGrid * kGrid);
