@@ -141,7 +141,8 @@ Status MeasureDarkLevel(const std::string& session_dir, const Session& session, 
                   "%s: at the sample points the dark frame (display black, with the sample) has a median of %.0f %% "
                   "of the camera's range at %.0f us: the display's black level (or ambient light) leaves the dots' "
                   "lobes the rest, and its shot noise hides their tails, so lobes read narrower than they are "
-                  "(flagged specular). Shorten the longest exposure or use a display with a darker black",
+                  "(flagged specular). Use a display with a darker black, or darken the room: a shorter longest exposure "
+                  "does not help (docs/acquisition.md, \"Exposure planning\")",
                   longest->file.c_str(), 100 * report->dark_fraction_of_range, longest->exposure_time_us);
     report->dark_level_warning = text;
   }

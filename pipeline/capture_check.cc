@@ -403,7 +403,8 @@ class CaptureChecker {
       Add(CheckSeverity::kWarning, "dark",
           "the dark frame at " + Exposure(exposure) + " fills " + Percent(level) +
               " of the range (99th percentile): a display's black glow or stray light takes the range and adds "
-              "its shot noise to every lit frame; darken the room or the display, or shorten the longest exposure",
+              "its shot noise to every lit frame; darken the room or the display (a shorter longest exposure "
+              "loses more signal than glow: docs/acquisition.md, \"Exposure planning\")",
           {darks.at(exposure).front()->index});
     }
   }
