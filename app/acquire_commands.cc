@@ -24,6 +24,7 @@
 #include "thinslab/acquire/display_gamma_session.h"
 #include "thinslab/acquire/dot_scan_session.h"
 #include "thinslab/acquire/exposure_plan.h"
+#include "thinslab/acquire/live_preview.h"
 #include "thinslab/acquire/laser_lobe_session.h"
 #include "thinslab/acquire/session_journal.h"
 #include "thinslab/acquire/shadow_map_session.h"
@@ -31,6 +32,7 @@
 #include "thinslab/app/subcommands.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/core/file.h"
+#include "thinslab/core/output_guard.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
 #include "thinslab/pipeline/capture_check.h"
@@ -39,7 +41,11 @@
 #include "thinslab/drivers/aravis_camera.h"
 #endif
 #if THINSLAB_WITH_SDL
+#include <opencv2/imgproc.hpp>
+
+#include "thinslab/core/png_io.h"
 #include "thinslab/drivers/pattern_window.h"
+#include "thinslab/drivers/preview_window.h"
 #endif
 #if THINSLAB_WITH_USB
 #include "thinslab/drivers/usb_laser.h"
@@ -978,6 +984,124 @@ int AcquireGammaCommand(int argc, char** argv) {
 
 }  // namespace
 
+// `thinslab acquire preview` (issue #28, item 1): the live camera image in a window, saturated
+// pixels red, the expected sample region outlined, a histogram and a focus bar
+// (acquire/live_preview.h); one line of statistics per frame on stdout.
+int AcquirePreview(int argc, char** argv) {
+  CommonOptions common;
+  double exposure_us = 10000;
+  int frames = 0;
+  std::string snapshot, rig_capture;
+  OptionParser parser("acquire preview");
+  parser.AddString("camera", &common.camera, "sim | aravis:<ip or device id> | v4l2:<device path>");
+  parser.AddDouble("camera-timeout-s", &common.camera_timeout_s, "real cameras: connect and frame timeout [s]");
+  parser.AddString("pixel-format", &common.pixel_format, "real cameras: pixel format (default: the driver's)");
+  parser.AddDouble("gain-db", &common.gain_db, "Aravis: analogue gain [dB]");
+  parser.AddInt("packet-size", &common.packet_size, "Aravis: GigE Vision packet size [bytes] (0: negotiate)");
+  parser.AddDouble("exposure-us", &exposure_us, "exposure of the preview frames [us]");
+  parser.AddInt("frames", &frames, "frames to show before exiting (0: until the window is closed, q or Ctrl-C)");
+  parser.AddString("snapshot", &snapshot, "write the last picture, as the window shows it, to this PNG");
+  parser.AddString("rig", &rig_capture, "outline the sample region of this capture's rig (its session.json)");
+  parser.AddString("region-mm", &common.region_mm, "without --rig: sample region x0,y0,x1,y1 [mm] to outline");
+  parser.AddDouble("board-distance-mm", &common.board_distance_mm, "without --rig: board distance [mm] (0: none)");
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) return Help(parser);
+  if (status.ok() && (!(exposure_us > 0) || !std::isfinite(exposure_us))) {
+    status = Status::Error("thinslab acquire preview: option --exposure-us must be > 0");
+  }
+  if (status.ok() && frames < 0) status = Status::Error("thinslab acquire preview: option --frames must be >= 0");
+  if (status.ok() && !snapshot.empty()) status = CheckOutputFile(snapshot, {});
+  if (!status.ok()) return Fail(status);
+#if THINSLAB_WITH_SDL
+  RealDevices devices;
+  status = OpenRealCamera(common, &devices);
+  if (!status.ok()) return Fail(status);
+  std::unique_ptr<SimDotMonitor> sim_monitor;
+  Camera* camera = devices.camera.get();
+  RigInfo rig;
+  if (common.camera == "sim") {
+    // The simulated monitor rig showing a 10 x 10 grid of dots, its screen outlined.
+    SimDotMonitorOptions monitor;
+    monitor.dot_radiance = 0.05;  // As `acquire dot-scan`.
+    DotScanSessionOptions dots;
+    dots.grid_nx = dots.grid_ny = 10;
+    dots.monitor_width_px = monitor.monitor_width_px;
+    dots.monitor_height_px = monitor.monitor_height_px;
+    status = SimDotMonitor::Create(monitor, &sim_monitor);
+    if (status.ok()) status = sim_monitor->ShowPattern(DotScanGridPattern(dots));
+    if (!status.ok()) return Fail(status);
+    camera = sim_monitor->camera();
+    rig = sim_monitor->rig();
+    const double half_w = 0.5 * monitor.monitor_width_px * monitor.monitor_pixel_pitch_m;
+    const double half_h = 0.5 * monitor.monitor_height_px * monitor.monitor_pixel_pitch_m;
+    rig.sample.region_min_m = Eigen::Vector2d(-half_w, -half_h);
+    rig.sample.region_max_m = Eigen::Vector2d(half_w, half_h);
+  } else {
+    status = RealRig(common, camera->info(), &rig);
+    if (!status.ok()) return Fail(status);
+  }
+  CameraInfo geometry = camera->info();
+  if (!rig_capture.empty()) {
+    Session session;
+    status = ReadSessionWithJournal(rig_capture, &session);
+    if (!status.ok()) return Fail(status.WithContext("option --rig"));
+    rig = session.rig;
+    if (rig.cameras.empty()) return Fail(Status::Error("option --rig: " + rig_capture + " has no camera"));
+    const CameraInfo& c = rig.cameras.front();
+    if (c.width_px != geometry.width_px || c.height_px != geometry.height_px) {
+      return Fail(Status::Error("option --rig: camera '" + c.id + "' of " + rig_capture + " is " +
+                                std::to_string(c.width_px) + " x " + std::to_string(c.height_px) + " px, camera " +
+                                common.camera + " delivers " + std::to_string(geometry.width_px) + " x " +
+                                std::to_string(geometry.height_px)));
+    }
+    geometry.fx_px = c.fx_px, geometry.fy_px = c.fy_px, geometry.cx_px = c.cx_px, geometry.cy_px = c.cy_px;
+    geometry.distortion = c.distortion;
+    geometry.cam_from_sample = c.cam_from_sample;
+  }
+  double applied_us = 0;
+  status = camera->SetExposure(exposure_us, &applied_us);
+  if (!status.ok()) return Fail(status.WithContext("camera " + common.camera));
+  std::unique_ptr<PreviewWindow> window;
+  status = OpenPreviewWindow(geometry.width_px, geometry.height_px + kPreviewHistogramHeight + kPreviewFocusBarHeight,
+                             "thinslab preview: " + common.camera, &window);
+  if (!status.ok()) return Fail(status);
+  std::signal(SIGINT, OnStopSignal);
+  std::signal(SIGTERM, OnStopSignal);
+  double best_focus = 0;
+  PreviewPicture picture;
+  for (int k = 1; frames == 0 || k <= frames; ++k) {
+    if (window->CloseRequested() || !StopReason().empty()) break;
+    CapturedFrame frame;
+    status = camera->Capture(&frame);
+    if (!status.ok()) break;
+    const PreviewStatistics statistics = MeasurePreview(frame.raw_dn, geometry);
+    best_focus = std::max(best_focus, statistics.focus);
+    picture = ComposePreview(frame.raw_dn, geometry, rig, statistics, best_focus);
+    status = window->Show(picture.rgb);
+    if (!status.ok()) break;
+    std::cout << "preview frame " << k << " (" << applied_us << " us): " << statistics.Describe() << std::endl;
+  }
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  if (!status.ok()) return Fail(status.WithContext("camera " + common.camera));
+  if (!snapshot.empty() && !picture.rgb.empty()) {
+    std::vector<uint8_t> shown;
+    status = window->ReadBack(&shown);
+    cv::Mat bgr(window->height(), window->width(), CV_8UC3);
+    if (status.ok()) {
+      cv::Mat rgb(window->height(), window->width(), CV_8UC3, shown.data());
+      cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+      status = WritePngAtomically(snapshot, bgr);
+    }
+    if (!status.ok()) return Fail(status.WithContext("option --snapshot"));
+    std::cout << "wrote " << snapshot << " (the window as shown)\n";
+  }
+  return 0;
+#else
+  return Fail(NotBuilt("acquire preview", "THINSLAB_WITH_SDL"));
+#endif
+}
+
 const std::vector<Subcommand>& AcquireSubcommands() {
   static const std::vector<Subcommand> table = {
       {"shadow-maps", AcquireShadowMapsCommand, "OUTPUT", "shadow maps: projector patterns through the sample"},
@@ -986,6 +1110,7 @@ const std::vector<Subcommand>& AcquireSubcommands() {
       {"bracket", AcquireBracketCommand, "OUTPUT", "exposure brackets of display states (camera response)"},
       {"gamma", AcquireGammaCommand, "OUTPUT", "display drive levels for the display gamma table"},
       {"fold-journal", FoldJournal, "OUTPUT", "write the journaled frames of a killed capture into session.json"},
+      {"preview", AcquirePreview, "", "live camera image: saturation, histogram, focus, the sample region outlined"},
   };
   return table;
 }

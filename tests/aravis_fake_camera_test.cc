@@ -14,7 +14,9 @@
 #include <chrono>
 #include <cstring>
 #include <cmath>
+#include <iomanip>
 #include <cstdlib>
+#include <sstream>
 #include <filesystem>
 #include <mutex>
 #include <thread>
@@ -29,6 +31,8 @@
 #include "thinslab/drivers/aravis_fake_camera.h"
 #include "thinslab/sim/contamination_pattern.h"
 #include "thinslab/sim/shadow_map_rig.h"
+#include <opencv2/imgcodecs.hpp>
+
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
 #include "tests/testing/xvfb_server.h"
@@ -774,6 +778,74 @@ TEST(AravisCamera, BadOptionsNameTheField) {
   status = OpenAravisCamera(options, &camera);
   ASSERT_FALSE(status.ok());
   EXPECT_NE(status.message().find("AravisCameraOptions::packet_size = 100"), std::string::npos) << status.message();
+}
+
+}  // namespace
+}  // namespace thinslab
+
+namespace thinslab {
+namespace {
+
+// `thinslab acquire preview --camera aravis:127.0.0.1` (issue #28, item 1) under a private Xvfb:
+// the window read back (--snapshot) shows the fake's image with its saturated block in red, a
+// ramp in grey at the preview's display gamma, the histogram with its saturated bin in red and
+// the focus bar; stdout has one line of statistics per frame.
+TEST(AravisFakeCamera, PreviewShowsTheLiveImageWithSaturationHistogramAndFocus) {
+  AravisFakeFrameSource source = [](const AravisFakeFrameRequest& request, Image* raw_dn) {
+    *raw_dn = Image(request.width_px, request.height_px);
+    for (int y = 0; y < request.height_px; ++y) {
+      for (int x = 0; x < request.width_px; ++x) {
+        const bool block = x >= 10 && x < 30 && y >= 10 && y < 30;
+        raw_dn->at(x, y) = block ? 65535.0f : static_cast<float>(1000 + 40 * (x % 256));
+      }
+    }
+    return Status::Ok();
+  };
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), source, &fake).ok());
+  XvfbServer xvfb;
+  std::string error;
+  ASSERT_TRUE(xvfb.Start(1280, 1024, &error)) << error;
+  setenv("DISPLAY", xvfb.display().c_str(), 1);
+#ifdef __SANITIZE_ADDRESS__
+  setenv("SDL_RENDER_DRIVER", "software", 1);
+  setenv("SDL_FRAMEBUFFER_ACCELERATION", "0", 1);
+#endif
+  TempDir dir;
+  const std::string snapshot = dir / "preview.png";
+  const RunResult r = RunThinslab("acquire preview --camera aravis:" + fake->address() +
+                                  " --camera-timeout-s 1 --pixel-format Mono16 --exposure-us 2000 --frames 3 --snapshot " +
+                                  snapshot);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("preview frame 3 (2000 us): saturated "), std::string::npos) << r.output;
+  const cv::Mat shown = cv::imread(snapshot, cv::IMREAD_COLOR);
+  ASSERT_FALSE(shown.empty()) << snapshot;
+  const int width = shown.cols, frame_height = shown.rows - 72;  // Histogram 64 + focus bar 8.
+  ASSERT_GT(width, 300);
+  ASSERT_GT(frame_height, 40);
+  // The saturated fraction printed is the block's.
+  const double block_percent = 100.0 * 400 / (static_cast<double>(width) * frame_height);
+  std::ostringstream expected;
+  expected << std::setprecision(3) << "saturated " << block_percent << " %";
+  EXPECT_NE(r.output.find(expected.str()), std::string::npos) << expected.str() << " not in\n" << r.output;
+  const cv::Vec3b red(0, 0, 255);  // BGR.
+  EXPECT_EQ(shown.at<cv::Vec3b>(20, 20), red);
+  // The ramp: grey (value - black) / 65535 at gamma 1 / 2.2.
+  for (int x : {40, 100, 200}) {
+    const double f = (1000 + 40.0 * (x % 256)) / 65535;
+    const int grey = static_cast<int>(std::lround(255 * std::pow(f, 1 / 2.2)));
+    const cv::Vec3b p = shown.at<cv::Vec3b>(50, x);
+    EXPECT_NEAR(p[0], grey, 1) << "x " << x;
+    EXPECT_EQ(p[0], p[1]);
+    EXPECT_EQ(p[1], p[2]);
+  }
+  // Histogram strip: the saturated bin (right end) red at its foot, white bars of the ramp's bins.
+  EXPECT_EQ(shown.at<cv::Vec3b>(frame_height + 63, width - 1), red);
+  int white = 0;
+  for (int x = 0; x < width; ++x) white += shown.at<cv::Vec3b>(frame_height + 63, x) == cv::Vec3b(255, 255, 255);
+  EXPECT_GT(white, 10);
+  // Focus bar: a steady scene is at its best focus, full length.
+  EXPECT_EQ(shown.at<cv::Vec3b>(frame_height + 68, width - 2), cv::Vec3b(0, 200, 255));
 }
 
 }  // namespace
