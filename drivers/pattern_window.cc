@@ -12,20 +12,13 @@
 #include <sstream>
 
 #include "thinslab/core/file.h"
+#include "thinslab/drivers/sdl_handles.h"
 
 namespace thinslab {
-namespace {
 
-SDL_Window* AsWindow(void* p) { return static_cast<SDL_Window*>(p); }
-SDL_Renderer* AsRenderer(void* p) { return static_cast<SDL_Renderer*>(p); }
-SDL_Texture* AsTexture(void* p) { return static_cast<SDL_Texture*>(p); }
-
-std::string SdlError() {
-  const char* e = SDL_GetError();
-  return e != nullptr && e[0] != '\0' ? std::string(e) : std::string("unknown SDL error");
-}
-
-}  // namespace
+using sdl::AsRenderer;
+using sdl::AsTexture;
+using sdl::AsWindow;
 
 double ExposureAsRefreshMultiple(double requested_s, double refresh_period_s) {
   if (!(refresh_period_s > 0) || !std::isfinite(refresh_period_s)) return requested_s;
@@ -53,7 +46,7 @@ Status PatternWindow::Present() {
   if (SDL_RenderClear(renderer) != 0 ||
       SDL_RenderCopy(renderer, AsTexture(texture_), nullptr, nullptr) != 0) {
     return Status::Error("pattern window on display " + std::to_string(options_.display_index) +
-                         ": rendering failed: " + SdlError());
+                         ": rendering failed: " + sdl::Error());
   }
   SDL_RenderPresent(renderer);
   return Status::Ok();
@@ -81,7 +74,7 @@ Status PatternWindow::ShowPattern(const std::string& pattern) {
     argb[i] = 0xff000000u | (uint32_t{d} << 16) | (uint32_t{d} << 8) | d;
   }
   if (SDL_UpdateTexture(AsTexture(texture_), nullptr, argb.data(), width_ * 4) != 0) {
-    return Status::Error("pattern window: texture upload failed: " + SdlError());
+    return Status::Error("pattern window: texture upload failed: " + sdl::Error());
   }
   // With vsync each present blocks until the next vertical blank: the first puts the pattern in
   // the queue, the following ones guarantee it has been scanned out at least once completely.
@@ -95,12 +88,12 @@ Status PatternWindow::ReadBackFramebuffer(Image* image) {
   // The back buffer is undefined after a present: draw the current texture again, read, present.
   if (SDL_RenderClear(renderer) != 0 ||
       SDL_RenderCopy(renderer, AsTexture(texture_), nullptr, nullptr) != 0) {
-    return Status::Error("pattern window: rendering failed: " + SdlError());
+    return Status::Error("pattern window: rendering failed: " + sdl::Error());
   }
   std::vector<uint32_t> argb(static_cast<size_t>(width_) * height_);
   if (SDL_RenderReadPixels(renderer, nullptr, SDL_PIXELFORMAT_ARGB8888, argb.data(), width_ * 4) !=
       0) {
-    return Status::Error("pattern window: SDL_RenderReadPixels failed: " + SdlError());
+    return Status::Error("pattern window: SDL_RenderReadPixels failed: " + sdl::Error());
   }
   SDL_RenderPresent(renderer);
   Image out(width_, height_, 0.0f);
@@ -133,12 +126,12 @@ Status OpenPatternWindow(const PatternWindowOptions& options, std::unique_ptr<Pa
   if (SDL_InitSubSystem(SDL_INIT_VIDEO) != 0) {
     const char* display = std::getenv("DISPLAY");
     return Status::Error(name + ": SDL video initialisation failed (DISPLAY=" +
-                         (display != nullptr ? display : "<unset>") + "): " + SdlError());
+                         (display != nullptr ? display : "<unset>") + "): " + sdl::Error());
   }
   w->owns_sdl_video_ = true;
   const int count = SDL_GetNumVideoDisplays();
   if (count < 1) {
-    return Status::Error(name + ": SDL finds no displays: " + SdlError());
+    return Status::Error(name + ": SDL finds no displays: " + sdl::Error());
   }
   if (options.display_index < 0 || options.display_index >= count) {
     return Status::Error("display index " + std::to_string(options.display_index) +
@@ -147,7 +140,7 @@ Status OpenPatternWindow(const PatternWindowOptions& options, std::unique_ptr<Pa
   }
   SDL_DisplayMode mode;
   if (SDL_GetCurrentDisplayMode(options.display_index, &mode) != 0) {
-    return Status::Error(name + ": SDL_GetCurrentDisplayMode failed: " + SdlError());
+    return Status::Error(name + ": SDL_GetCurrentDisplayMode failed: " + sdl::Error());
   }
   // SDL reports 0 Hz when the driver does not know (e.g. Xvfb without RandR rates).
   w->refresh_period_s_ = mode.refresh_rate > 0 ? 1.0 / mode.refresh_rate : 0;
@@ -171,7 +164,7 @@ Status OpenPatternWindow(const PatternWindowOptions& options, std::unique_ptr<Pa
       "thinslab pattern", SDL_WINDOWPOS_UNDEFINED_DISPLAY(options.display_index),
       SDL_WINDOWPOS_UNDEFINED_DISPLAY(options.display_index), width, height, flags);
   if (window == nullptr) {
-    return Status::Error(name + ": SDL_CreateWindow failed: " + SdlError());
+    return Status::Error(name + ": SDL_CreateWindow failed: " + sdl::Error());
   }
   w->window_ = window;
   SDL_Renderer* renderer =
@@ -181,7 +174,7 @@ Status OpenPatternWindow(const PatternWindowOptions& options, std::unique_ptr<Pa
     renderer = SDL_CreateRenderer(window, -1, SDL_RENDERER_SOFTWARE);
   }
   if (renderer == nullptr) {
-    return Status::Error(name + ": SDL_CreateRenderer failed: " + SdlError());
+    return Status::Error(name + ": SDL_CreateRenderer failed: " + sdl::Error());
   }
   w->renderer_ = renderer;
   SDL_RendererInfo renderer_info;
@@ -194,12 +187,12 @@ Status OpenPatternWindow(const PatternWindowOptions& options, std::unique_ptr<Pa
   SDL_PumpEvents();
   if (SDL_GetRendererOutputSize(renderer, &w->width_, &w->height_) != 0 || w->width_ <= 0 ||
       w->height_ <= 0) {
-    return Status::Error(name + ": SDL_GetRendererOutputSize failed: " + SdlError());
+    return Status::Error(name + ": SDL_GetRendererOutputSize failed: " + sdl::Error());
   }
   SDL_Texture* texture = SDL_CreateTexture(renderer, SDL_PIXELFORMAT_ARGB8888,
                                            SDL_TEXTUREACCESS_STREAMING, w->width_, w->height_);
   if (texture == nullptr) {
-    return Status::Error(name + ": SDL_CreateTexture failed: " + SdlError());
+    return Status::Error(name + ": SDL_CreateTexture failed: " + sdl::Error());
   }
   w->texture_ = texture;
   SDL_ShowCursor(SDL_DISABLE);

@@ -3,20 +3,13 @@
 
 #include <SDL.h>
 
+#include "thinslab/drivers/sdl_handles.h"
+
 namespace thinslab {
 
-namespace {
-
-SDL_Window* AsWindow(void* p) { return static_cast<SDL_Window*>(p); }
-SDL_Renderer* AsRenderer(void* p) { return static_cast<SDL_Renderer*>(p); }
-SDL_Texture* AsTexture(void* p) { return static_cast<SDL_Texture*>(p); }
-
-std::string SdlError() {
-  const char* e = SDL_GetError();
-  return e != nullptr && *e != '\0' ? e : "unknown SDL error";
-}
-
-}  // namespace
+using sdl::AsRenderer;
+using sdl::AsTexture;
+using sdl::AsWindow;
 
 PreviewWindow::~PreviewWindow() {
   if (texture_ != nullptr) SDL_DestroyTexture(AsTexture(texture_));
@@ -28,7 +21,7 @@ PreviewWindow::~PreviewWindow() {
 Status PreviewWindow::Render() {
   SDL_Renderer* renderer = AsRenderer(renderer_);
   if (SDL_RenderClear(renderer) != 0 || SDL_RenderCopy(renderer, AsTexture(texture_), nullptr, nullptr) != 0) {
-    return Status::Error("preview window: SDL_RenderCopy failed: " + SdlError());
+    return Status::Error("preview window: SDL_RenderCopy failed: " + sdl::Error());
   }
   return Status::Ok();
 }
@@ -39,7 +32,7 @@ Status PreviewWindow::Show(const std::vector<uint8_t>& rgb) {
                          std::to_string(width_) + " x " + std::to_string(height_) + " window");
   }
   if (SDL_UpdateTexture(AsTexture(texture_), nullptr, rgb.data(), width_ * 3) != 0) {
-    return Status::Error("preview window: SDL_UpdateTexture failed: " + SdlError());
+    return Status::Error("preview window: SDL_UpdateTexture failed: " + sdl::Error());
   }
   THINSLAB_RETURN_IF_ERROR(Render());
   SDL_RenderPresent(AsRenderer(renderer_));
@@ -61,7 +54,7 @@ Status PreviewWindow::ReadBack(std::vector<uint8_t>* rgb) {
   THINSLAB_RETURN_IF_ERROR(Render());
   rgb->assign(static_cast<size_t>(width_) * height_ * 3, 0);
   if (SDL_RenderReadPixels(AsRenderer(renderer_), nullptr, SDL_PIXELFORMAT_RGB24, rgb->data(), width_ * 3) != 0) {
-    return Status::Error("preview window: SDL_RenderReadPixels failed: " + SdlError());
+    return Status::Error("preview window: SDL_RenderReadPixels failed: " + sdl::Error());
   }
   SDL_RenderPresent(AsRenderer(renderer_));
   return Status::Ok();
@@ -74,21 +67,21 @@ Status OpenPreviewWindow(int width, int height, const std::string& title, std::u
   }
   std::unique_ptr<PreviewWindow> w(new PreviewWindow());
   if (SDL_InitSubSystem(SDL_INIT_VIDEO) != 0) {
-    return Status::Error("preview window: SDL_InitSubSystem(VIDEO) failed (is DISPLAY set?): " + SdlError());
+    return Status::Error("preview window: SDL_InitSubSystem(VIDEO) failed (is DISPLAY set?): " + sdl::Error());
   }
   w->owns_sdl_video_ = true;
   SDL_Window* sdl_window = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_UNDEFINED, SDL_WINDOWPOS_UNDEFINED, width,
                                             height, SDL_WINDOW_SHOWN);
-  if (sdl_window == nullptr) return Status::Error("preview window: SDL_CreateWindow failed: " + SdlError());
+  if (sdl_window == nullptr) return Status::Error("preview window: SDL_CreateWindow failed: " + sdl::Error());
   w->window_ = sdl_window;
   SDL_Renderer* renderer = SDL_CreateRenderer(sdl_window, -1, SDL_RENDERER_ACCELERATED);
   if (renderer == nullptr) renderer = SDL_CreateRenderer(sdl_window, -1, SDL_RENDERER_SOFTWARE);
-  if (renderer == nullptr) return Status::Error("preview window: SDL_CreateRenderer failed: " + SdlError());
+  if (renderer == nullptr) return Status::Error("preview window: SDL_CreateRenderer failed: " + sdl::Error());
   w->renderer_ = renderer;
   SDL_SetRenderDrawColor(renderer, 0, 0, 0, 255);
   SDL_Texture* texture =
       SDL_CreateTexture(renderer, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING, width, height);
-  if (texture == nullptr) return Status::Error("preview window: SDL_CreateTexture failed: " + SdlError());
+  if (texture == nullptr) return Status::Error("preview window: SDL_CreateTexture failed: " + sdl::Error());
   w->texture_ = texture;
   w->width_ = width;
   w->height_ = height;
