@@ -42,9 +42,12 @@ namespace {
 std::string Us(double us) {
   std::ostringstream s;
   s << std::setprecision(4);
-  if (us >= 1e6) s << us / 1e6 << " s";
-  else if (us >= 1e3) s << us / 1e3 << " ms";
-  else s << us << " us";
+  if (us >= 1e6)
+    s << us / 1e6 << " s";
+  else if (us >= 1e3)
+    s << us / 1e3 << " ms";
+  else
+    s << us << " us";
   return s.str();
 }
 
@@ -97,7 +100,8 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
   std::string edge_label;
   for (const ProbeMeasurement& lobe : lobes) {
     if (!(lobe.peak_dn_per_us > 0)) continue;
-    const double t = EdgeExposureUs(options.edge_fraction * lobe.peak_dn_per_us, glow, read_dn, gain, options.edge_sigmas);
+    const double t =
+        EdgeExposureUs(options.edge_fraction * lobe.peak_dn_per_us, glow, read_dn, gain, options.edge_sigmas);
     if (t > edge_us) {
       edge_us = t;
       edge_label = lobe.label;
@@ -124,7 +128,8 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
   if (longest <= shortest * (1 + 1e-9)) {
     bracket.exposures_us = {shortest};
   } else {
-    const int steps = static_cast<int>(std::ceil(std::log(longest / shortest) / std::log(options.max_step_ratio) - 1e-9)) + 1;
+    const int steps =
+        static_cast<int>(std::ceil(std::log(longest / shortest) / std::log(options.max_step_ratio) - 1e-9)) + 1;
     for (int k = 0; k < steps; ++k) {
       bracket.exposures_us.push_back(shortest * std::pow(longest / shortest, static_cast<double>(k) / (steps - 1)));
     }
@@ -155,7 +160,8 @@ class Prober {
     const CameraInfo& info = camera_->info();
     const double range = info.saturation_dn - info.black_level_dn;
     const double shortest = period_us_ > 0 ? period_us_ : 1.0;
-    for (double t = start_us;; t = std::max(shortest, period_us_ > 0 ? std::floor(t / 2 / period_us_) * period_us_ : t / 2)) {
+    for (double t = start_us;;
+         t = std::max(shortest, period_us_ > 0 ? std::floor(t / 2 / period_us_) * period_us_ : t / 2)) {
       double applied = 0;
       THINSLAB_RETURN_IF_ERROR(camera_->SetExposure(t, &applied).WithContext("exposure probe: " + label));
       CapturedFrame frame;
@@ -198,8 +204,8 @@ Status ProbeAndPlanDotScanExposures(Camera* camera, Projector* projector, const 
   ProbeMeasurement brightest, black;
   std::vector<ProbeMeasurement> lobes;
   THINSLAB_RETURN_IF_ERROR(change_sample("none"));
-  THINSLAB_RETURN_IF_ERROR(prober.Measure("the all-dots frame without the sample", all_dots_pattern, true, probe_us,
-                                          &brightest));
+  THINSLAB_RETURN_IF_ERROR(
+      prober.Measure("the all-dots frame without the sample", all_dots_pattern, true, probe_us, &brightest));
   THINSLAB_RETURN_IF_ERROR(change_sample(sample_state));
   // The glow and the lobes are dim: probed long (64 probe exposures), shortened while they saturate.
   const double long_us = std::min(64 * probe_us, options.max_exposure_us);

@@ -30,35 +30,35 @@
 namespace thinslab {
 
 struct ExposurePlanOptions {
-  double peak_fill = 0.5;          // Brightest peak in the shortest exposure, fraction of the range.
+  double peak_fill = 0.5;  // Brightest peak in the shortest exposure, fraction of the range.
   // Glow (99th percentile of the black frame) in the longest exposure. High: a longer exposure
   // always gains signal to noise over the glow's shot noise, and the shorter exposures keep what
   // lobe and glow saturate together. Measured on the simulated 0.2 % black display (10 x 10
   // dots, 4 mm map, docs/acquisition.md "Exposure planning"): 0.1 -> 0 ok points at 8 mm,
   // 0.5 -> 79 correct of 400, 0.8 -> 86 (the cap then rules).
   double max_dark_fraction = 0.8;
-  double edge_fraction = 0.05;     // A lobe's edge, fraction of its peak (the fit's alpha lobe core).
-  double edge_sigmas = 10;         // Its signal to noise in the longest exposure.
-  double min_exposure_us = 0;      // Floor of the shortest (0: one refresh period, or 1 us).
-  double max_exposure_us = 1e7;    // Cap of the longest.
+  double edge_fraction = 0.05;   // A lobe's edge, fraction of its peak (the fit's alpha lobe core).
+  double edge_sigmas = 10;       // Its signal to noise in the longest exposure.
+  double min_exposure_us = 0;    // Floor of the shortest (0: one refresh period, or 1 us).
+  double max_exposure_us = 1e7;  // Cap of the longest.
   double max_step_ratio = 16;
-  double probe_exposure_us = 0;    // First probe exposure (0: one refresh period, or 1000 us).
-  int settle_captures = 3;         // Captures per probe state; the last is measured.
+  double probe_exposure_us = 0;  // First probe exposure (0: one refresh period, or 1000 us).
+  int settle_captures = 3;       // Captures per probe state; the last is measured.
   bool Check(std::string* error) const;
 };
 
 // One probed state and what it showed.
 struct ProbeMeasurement {
-  std::string label;           // "all dots without the sample", "black display", "dot (x, y)".
-  double exposure_us = 0;      // The probe frame's exposure (unsaturated, or the shortest tried).
-  double peak_dn_per_us = 0;   // Brightest pixel (bright states) or 99th percentile (black).
-  bool saturated = false;      // Even the shortest probe exposure saturated: a lower bound.
+  std::string label;          // "all dots without the sample", "black display", "dot (x, y)".
+  double exposure_us = 0;     // The probe frame's exposure (unsaturated, or the shortest tried).
+  double peak_dn_per_us = 0;  // Brightest pixel (bright states) or 99th percentile (black).
+  bool saturated = false;     // Even the shortest probe exposure saturated: a lower bound.
 };
 
 struct ExposurePlan {
   std::vector<double> exposures_us;  // Ascending, whole refresh periods.
   std::vector<ProbeMeasurement> probes;
-  std::string why;                   // One paragraph: which state set which end and by how much.
+  std::string why;  // One paragraph: which state set which end and by how much.
 };
 
 // Chooses the bracket from measured probes (pure; tested without devices). `brightest`: the

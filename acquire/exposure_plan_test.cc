@@ -44,7 +44,7 @@ bool WholePeriods(const std::vector<double>& exposures) {
 TEST(ExposurePlan, TheGlowLimitsTheLongestAndTheBrightestTheShortest) {
   const double range = 4095 - 64;
   const ProbeMeasurement brightest = Probe("all dots", 0.5 * range / (4 * kPeriodUs));  // Half range at 4 periods.
-  const ProbeMeasurement glow = Probe("black", 0.1 * range / (100 * kPeriodUs));       // 10 % at 100 periods.
+  const ProbeMeasurement glow = Probe("black", 0.1 * range / (100 * kPeriodUs));        // 10 % at 100 periods.
   const ProbeMeasurement lobe = Probe("dot (1, 1)", 1e-4);
   ExposurePlanOptions options;
   options.max_dark_fraction = 0.1;
@@ -98,7 +98,8 @@ TEST(ExposurePlan, TheCapAndASingleExposure) {
 
 TEST(ExposurePlan, NothingLitOrBadOptionsAreErrors) {
   ExposurePlan plan;
-  Status s = PlanExposures(Probe("all dots", 0), Probe("black", 0), {}, Camera12Bit(), kPeriodS, ExposurePlanOptions(), &plan);
+  Status s =
+      PlanExposures(Probe("all dots", 0), Probe("black", 0), {}, Camera12Bit(), kPeriodS, ExposurePlanOptions(), &plan);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.message().find("all dots"), std::string::npos) << s.message();
   ExposurePlanOptions options;

@@ -42,8 +42,8 @@ void DrawLine(PreviewPicture* picture, int frame_height, Eigen::Vector2d a, Eige
 }
 
 // The sample rectangle at height z, carried along `along` (unit z component < 0) from z = 0.
-void DrawRegion(PreviewPicture* picture, int frame_height, const CameraInfo& camera, const SampleInfo& sample,
-                double z, const Eigen::Vector3d& along) {
+void DrawRegion(PreviewPicture* picture, int frame_height, const CameraInfo& camera, const SampleInfo& sample, double z,
+                const Eigen::Vector3d& along) {
   const Eigen::Vector2d lo = sample.region_min_m, hi = sample.region_max_m;
   const Eigen::Vector2d corners[4] = {lo, {hi.x(), lo.y()}, hi, {lo.x(), hi.y()}};
   constexpr int kPerSide = 16;  // Sub-segments, so a distorted edge is drawn curved.
@@ -87,8 +87,8 @@ PreviewStatistics MeasurePreview(const Image& raw_dn, const CameraInfo& camera) 
   int64_t count = 0;
   for (int y = 1; y + 1 < raw_dn.height(); ++y) {
     for (int x = 1; x + 1 < raw_dn.width(); ++x) {
-      const double l = 4.0 * raw_dn.at(x, y) - raw_dn.at(x - 1, y) - raw_dn.at(x + 1, y) - raw_dn.at(x, y - 1) -
-                       raw_dn.at(x, y + 1);
+      const double l =
+          4.0 * raw_dn.at(x, y) - raw_dn.at(x - 1, y) - raw_dn.at(x + 1, y) - raw_dn.at(x, y - 1) - raw_dn.at(x, y + 1);
       laplacian_sq += l * l;
       ++count;
     }
@@ -133,11 +133,14 @@ PreviewPicture ComposePreview(const Image& raw_dn, const CameraInfo& camera, con
   for (int x = 0; x < picture.width && top > 0; ++x) {
     // Column 0 is bin 0 and the last column the saturated bin 255, whatever the width.
     const int bin = picture.width > 1 ? x * 255 / (picture.width - 1) : 255;
-    const int bar = static_cast<int>(std::lround(kPreviewHistogramHeight * std::log1p(statistics.histogram[bin]) / top));
+    const int bar =
+        static_cast<int>(std::lround(kPreviewHistogramHeight * std::log1p(statistics.histogram[bin]) / top));
     for (int k = 0; k < bar; ++k) {
       uint8_t* p = picture.at(x, frame_height + kPreviewHistogramHeight - 1 - k);
-      if (bin == 255) SetRgb(p, 255, 0, 0);
-      else SetRgb(p, 255, 255, 255);
+      if (bin == 255)
+        SetRgb(p, 255, 0, 0);
+      else
+        SetRgb(p, 255, 255, 255);
     }
   }
   // Focus bar: this frame's measure against the best seen.

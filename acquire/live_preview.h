@@ -27,7 +27,7 @@ struct PreviewStatistics {
   double saturated_fraction = 0;  // Pixels at or above saturation.
   double peak_fraction = 0;       // Brightest pixel over the range.
   double mean_fraction = 0;
-  double focus = 0;               // Mean squared Laplacian / mean squared value.
+  double focus = 0;                // Mean squared Laplacian / mean squared value.
   std::vector<int64_t> histogram;  // 256 bins over [0, range].
   // "saturated 0.31 %, peak 100 % of range, mean 12.4 %, focus 0.0123".
   std::string Describe() const;

@@ -71,7 +71,8 @@ TEST(LivePreview, SaturationHistogramAndARegionOutline) {
   for (int y = 0; y < 100; ++y) {
     for (int x = 0; x < 120; ++x) {
       if (!is(x, y, 0, 255, 0)) continue;
-      const bool edge = (std::abs(x - 40) <= 1 || std::abs(x - 80) <= 1) || (std::abs(y - 30) <= 1 || std::abs(y - 70) <= 1);
+      const bool edge =
+          (std::abs(x - 40) <= 1 || std::abs(x - 80) <= 1) || (std::abs(y - 30) <= 1 || std::abs(y - 70) <= 1);
       (edge ? green_on_edges : green_elsewhere)++;
     }
   }

@@ -13,20 +13,24 @@
 namespace thinslab {
 
 void AddCaptureCheckOptions(OptionParser* parser, CaptureCheckOptions* options) {
-  parser->AddString("response", &options->response_path,
-                    "camera response: a response.json, \"linear\", or empty for CAPTURE/calib/response.json if present");
+  parser->AddString(
+      "response", &options->response_path,
+      "camera response: a response.json, \"linear\", or empty for CAPTURE/calib/response.json if present");
   parser->AddDouble("max-saturated-fraction", &options->max_saturated_fraction,
                     "re-take when a state's shortest exposure has more than this fraction of a frame saturated");
   parser->AddDouble("min-peak-sigmas", &options->min_peak_sigmas,
                     "a lit state whose peak in its longest exposure is below this many noise sigmas shows nothing");
-  parser->AddDouble("min-range-fraction", &options->min_range_fraction,
-                    "warn when a kind's brightest state peaks below this fraction of the range in the longest exposure");
+  parser->AddDouble(
+      "min-range-fraction", &options->min_range_fraction,
+      "warn when a kind's brightest state peaks below this fraction of the range in the longest exposure");
   parser->AddDouble("max-dark-fraction", &options->max_dark_fraction,
                     "warn when the dark frame's 99th percentile exceeds this fraction of the range");
-  parser->AddDouble("max-moved-fraction", &options->max_moved_fraction,
-                    "re-take when two frames of one state differ beyond the noise in more than this fraction of pixels");
-  parser->AddDouble("max-brightness-change", &options->max_brightness_change,
-                    "re-take when a frame's brightness is off its state's neighbours (and exposure ratio) by more than this");
+  parser->AddDouble(
+      "max-moved-fraction", &options->max_moved_fraction,
+      "re-take when two frames of one state differ beyond the noise in more than this fraction of pixels");
+  parser->AddDouble(
+      "max-brightness-change", &options->max_brightness_change,
+      "re-take when a frame's brightness is off its state's neighbours (and exposure ratio) by more than this");
   parser->AddDouble("max-spot-offset-mm", &options->max_spot_offset_mm,
                     "warn when the laser spot is further than this from where the manifest puts the beam [mm]");
   parser->AddDouble("min-dots-found-fraction", &options->min_dots_found_fraction,
@@ -46,8 +50,9 @@ int RunCheck(int argc, char** argv) {
   AddCaptureCheckOptions(&parser, &options);
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
-    std::cout << parser.Usage()
-              << "\nExit status: 0 when the verdict is \"good\" or \"usable\", 3 when it is \"retake\", 1 on an error.\n";
+    std::cout
+        << parser.Usage()
+        << "\nExit status: 0 when the verdict is \"good\" or \"usable\", 3 when it is \"retake\", 1 on an error.\n";
     return 0;
   }
   if (status.ok() && !json_path.empty()) status = CheckOutputFile(json_path, {{session_dir, {"fit", "calib"}}});

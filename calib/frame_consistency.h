@@ -24,19 +24,19 @@
 namespace thinslab {
 
 struct FramePairOptions {
-  double min_signal_sigmas = 20;  // Pixels compared: b / expected_ratio above this many sigmas at zero.
+  double min_signal_sigmas = 20;         // Pixels compared: b / expected_ratio above this many sigmas at zero.
   double max_saturation_fraction = 0.9;  // and both below this fraction of saturation.
-  double outlier_sigmas = 6;      // A pixel differs when its residual exceeds this many sigmas.
-  int level_bins = 8;             // Equal-count signal bins the ratio is measured in.
-  int min_pixels = 100;           // Fewer compared pixels: nothing is measured.
+  double outlier_sigmas = 6;             // A pixel differs when its residual exceeds this many sigmas.
+  int level_bins = 8;                    // Equal-count signal bins the ratio is measured in.
+  int min_pixels = 100;                  // Fewer compared pixels: nothing is measured.
   bool Check(std::string* error) const;
 };
 
 struct FramePairComparison {
-  int pixels = 0;                 // Pixels compared (0: too few; nothing below is measured).
-  double ratio = 0;               // Median of b / a over them (t_b / t_a when nothing changed).
-  double ratio_sigma = 0;         // Its standard error (robust scatter / sqrt(pixels)).
-  double outlier_fraction = 0;    // Pixels whose residual exceeds outlier_sigmas.
+  int pixels = 0;               // Pixels compared (0: too few; nothing below is measured).
+  double ratio = 0;             // Median of b / a over them (t_b / t_a when nothing changed).
+  double ratio_sigma = 0;       // Its standard error (robust scatter / sqrt(pixels)).
+  double outlier_fraction = 0;  // Pixels whose residual exceeds outlier_sigmas.
   bool measured() const { return pixels > 0; }
 };
 

@@ -1,13 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/calib/frame_consistency.h"
 
-#include "thinslab/calib/frame_noise.h"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
+#include "thinslab/calib/frame_noise.h"
 #include "thinslab/core/math.h"
 
 namespace thinslab {
@@ -105,7 +104,8 @@ TEST(FrameConsistency, PixelsTheShortFrameCannotResolveAreNotCompared) {
 
 TEST(FrameConsistency, BadInputIsAnError) {
   FramePairComparison c;
-  EXPECT_FALSE(CompareFramePair(Image(4, 4), Image(5, 4), Image(4, 4), Image(5, 4), 1, 4095, FramePairOptions(), &c).ok());
+  EXPECT_FALSE(
+      CompareFramePair(Image(4, 4), Image(5, 4), Image(4, 4), Image(5, 4), 1, 4095, FramePairOptions(), &c).ok());
   FramePairOptions options;
   options.outlier_sigmas = 0;
   const Status s = CompareFramePair(Image(4, 4), Image(4, 4), Image(4, 4), Image(4, 4), 1, 4095, options, &c);

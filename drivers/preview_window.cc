@@ -79,8 +79,7 @@ Status OpenPreviewWindow(int width, int height, const std::string& title, std::u
   if (renderer == nullptr) return Status::Error("preview window: SDL_CreateRenderer failed: " + sdl::Error());
   w->renderer_ = renderer;
   SDL_SetRenderDrawColor(renderer, 0, 0, 0, 255);
-  SDL_Texture* texture =
-      SDL_CreateTexture(renderer, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING, width, height);
+  SDL_Texture* texture = SDL_CreateTexture(renderer, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING, width, height);
   if (texture == nullptr) return Status::Error("preview window: SDL_CreateTexture failed: " + sdl::Error());
   w->texture_ = texture;
   w->width_ = width;

@@ -27,9 +27,12 @@ namespace thinslab {
 
 const char* CheckSeverityName(CheckSeverity severity) {
   switch (severity) {
-    case CheckSeverity::kNote: return "note";
-    case CheckSeverity::kWarning: return "warning";
-    case CheckSeverity::kRetake: return "retake";
+    case CheckSeverity::kNote:
+      return "note";
+    case CheckSeverity::kWarning:
+      return "warning";
+    case CheckSeverity::kRetake:
+      return "retake";
   }
   return "unknown";
 }
@@ -87,9 +90,12 @@ std::string Percent(double fraction) { return Fixed(100 * fraction, fraction < 0
 std::string Exposure(double us) {
   std::ostringstream s;
   s << std::setprecision(4);
-  if (us >= 1e6) s << us / 1e6 << " s";
-  else if (us >= 1e3) s << us / 1e3 << " ms";
-  else s << us << " us";
+  if (us >= 1e6)
+    s << us / 1e6 << " s";
+  else if (us >= 1e3)
+    s << us / 1e3 << " ms";
+  else
+    s << us << " us";
   return s.str();
 }
 
@@ -111,7 +117,8 @@ std::string CaptureCheck::Describe() const {
     if (k.lit > 0) {
       out << "; saturated at the shortest: " << k.saturated_states << " (worst " << Percent(k.worst_saturated_fraction)
           << " of a frame); peak at the longest: median " << Fixed(k.median_peak_sigmas, 0) << " sigma, "
-          << k.underexposed_states << " below threshold, brightest " << Percent(k.max_range_fraction) << " of the range";
+          << k.underexposed_states << " below threshold, brightest " << Percent(k.max_range_fraction)
+          << " of the range";
     }
     if (k.frame_pairs > 0) {
       out << "; " << k.frame_pairs << " frame pair(s): worst " << Percent(k.worst_moved_fraction)
@@ -129,8 +136,10 @@ std::string CaptureCheck::Describe() const {
     warnings += f.severity == CheckSeverity::kWarning;
   }
   out << "verdict: " << verdict();
-  if (retake > 0) out << " (" << retake << " reason(s) to re-take before the sample leaves the rig)";
-  else if (warnings > 0) out << " (" << warnings << " warning(s); the fits will run)";
+  if (retake > 0)
+    out << " (" << retake << " reason(s) to re-take before the sample leaves the rig)";
+  else if (warnings > 0)
+    out << " (" << warnings << " warning(s); the fits will run)";
   out << "\n";
   return out.str();
 }
@@ -165,8 +174,10 @@ nlohmann::ordered_json CaptureCheck::ToJson() const {
   j["geometry"] = geometry;
   j["findings"] = nlohmann::ordered_json::array();
   for (const CheckFinding& f : findings) {
-    j["findings"].push_back(
-        {{"severity", CheckSeverityName(f.severity)}, {"topic", f.topic}, {"message", f.message}, {"frames", f.frames}});
+    j["findings"].push_back({{"severity", CheckSeverityName(f.severity)},
+                             {"topic", f.topic},
+                             {"message", f.message},
+                             {"frames", f.frames}});
   }
   return j;
 }
@@ -180,8 +191,8 @@ using StateKey = std::tuple<std::string, std::string, std::string, std::string, 
 
 StateKey KeyOf(const FrameRecord& f) {
   const Eigen::Vector2d dot = f.light.dot_px.value_or(Eigen::Vector2d(-1, -1));
-  return {f.camera_id, f.kind, f.sample_state, f.light.projector_pattern, f.light.laser_on, dot.x(), dot.y(),
-          f.validation};
+  return {f.camera_id,      f.kind,  f.sample_state, f.light.projector_pattern,
+          f.light.laser_on, dot.x(), dot.y(),        f.validation};
 }
 
 std::string KindLabel(const FrameRecord& f) {
@@ -205,8 +216,8 @@ struct CameraContext {
   CameraInfo camera;  // With rig.json applied.
   SessionCalibration calibration;
   FrameNoiseModel noise;
-  double saturation = kInf;           // Black-subtracted raw level at which a value clips.
-  std::map<double, Image> dark_raw;   // Mean dark frame per exposure, raw black-subtracted.
+  double saturation = kInf;          // Black-subtracted raw level at which a value clips.
+  std::map<double, Image> dark_raw;  // Mean dark frame per exposure, raw black-subtracted.
   std::map<double, Image> dark_linear;
   std::map<double, int> dark_count;
 };
@@ -302,8 +313,7 @@ class CaptureChecker {
   }
 
  private:
-  void Add(CheckSeverity severity, const std::string& topic, const std::string& message,
-           std::vector<int> frames = {}) {
+  void Add(CheckSeverity severity, const std::string& topic, const std::string& message, std::vector<int> frames = {}) {
     if (static_cast<int>(frames.size()) > options_.max_examples) frames.resize(options_.max_examples);
     check_->findings.push_back({severity, topic, message, std::move(frames)});
   }
@@ -342,8 +352,9 @@ class CaptureChecker {
     THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(dir_, session_, context->camera, &context->noise));
     if (context->noise.method == "default") {
       Add(CheckSeverity::kNote, "noise",
-          "camera '" + manifest_camera.id + "': the noise could not be estimated (no repeated frames, too few pixels) "
-          "and the manifest declares no gain: sigma thresholds assume gain 1 and 1 DN read noise");
+          "camera '" + manifest_camera.id +
+              "': the noise could not be estimated (no repeated frames, too few pixels) "
+              "and the manifest declares no gain: sigma thresholds assume gain 1 and 1 DN read noise");
     }
     const CameraInfo& camera = context->camera;
     if (std::isfinite(camera.saturation_dn) && camera.saturation_dn > 0) {
@@ -515,12 +526,12 @@ class CaptureChecker {
   Status ComparePairs(const CameraContext& context, const std::vector<LoadedFrame>& frames, const StateRecord& state) {
     for (size_t k = 0; k + 1 < frames.size(); ++k) {
       const LoadedFrame &a = frames[k], &b = frames[k + 1];
-      PairRecord pair{state.kind, state.state, a.record->exposure_time_us, b.record->exposure_time_us,
+      PairRecord pair{state.kind,      state.state,     a.record->exposure_time_us, b.record->exposure_time_us,
                       a.record->index, b.record->index, FramePairComparison()};
-      THINSLAB_RETURN_IF_ERROR(CompareFramePair(a.signal, b.signal, a.variance, b.variance, pair.t_b / pair.t_a,
-                                                context.saturation, options_.pair, &pair.comparison)
-                                   .WithContext("frames " + std::to_string(pair.frame_a) + " and " +
-                                                std::to_string(pair.frame_b)));
+      THINSLAB_RETURN_IF_ERROR(
+          CompareFramePair(a.signal, b.signal, a.variance, b.variance, pair.t_b / pair.t_a, context.saturation,
+                           options_.pair, &pair.comparison)
+              .WithContext("frames " + std::to_string(pair.frame_a) + " and " + std::to_string(pair.frame_b)));
       if (pair.comparison.measured()) pairs_.push_back(pair);
     }
     return Status::Ok();
@@ -541,8 +552,8 @@ class CaptureChecker {
     const double median = Median(radiance.data());
     if (!(peak > 20 * std::max(median, 0.0))) {
       Add(CheckSeverity::kRetake, "beam",
-          state.state + ": no laser spot stands out (brightest 5 x 5 patch " + Fixed(peak / std::max(median, 1e-30), 1) +
-              " x the median): is the laser on and aimed at the board?",
+          state.state + ": no laser spot stands out (brightest 5 x 5 patch " +
+              Fixed(peak / std::max(median, 1e-30), 1) + " x the median): is the laser on and aimed at the board?",
           {state.first_frame});
       return;
     }
@@ -565,7 +576,8 @@ class CaptureChecker {
         sy += w * (y + 0.5);
       }
     }
-    const Eigen::Vector2d pixel = sw > 0 ? Eigen::Vector2d(sx / sw, sy / sw) : found.cast<double>() + Eigen::Vector2d(0.5, 0.5);
+    const Eigen::Vector2d pixel =
+        sw > 0 ? Eigen::Vector2d(sx / sw, sy / sw) : found.cast<double>() + Eigen::Vector2d(0.5, 0.5);
     const Eigen::Vector3d spot = on_board(pixel);
     if (!spot.allFinite()) return;
     const bool on_region = spot.x() >= sample.region_min_m.x() && spot.x() <= sample.region_max_m.x() &&
@@ -594,8 +606,10 @@ class CaptureChecker {
                                " mm from the manifest's beam");
     if (offset > tolerance) {
       Add(CheckSeverity::kWarning, "beam",
-          state.state + ": " + where + ", " + Fixed(offset * 1e3, 2) + " mm from where the manifest's laser puts the "
-              "beam (" + Fixed(expected.x() * 1e3, 2) + ", " + Fixed(expected.y() * 1e3, 2) +
+          state.state + ": " + where + ", " + Fixed(offset * 1e3, 2) +
+              " mm from where the manifest's laser puts the "
+              "beam (" +
+              Fixed(expected.x() * 1e3, 2) + ", " + Fixed(expected.y() * 1e3, 2) +
               "): the beam, board or camera moved, or the manifest's laser is off; `fit phase` centres its rings on "
               "the spot it finds but takes the beam's direction and the board distance from the manifest",
           {state.first_frame});
@@ -618,8 +632,8 @@ class CaptureChecker {
     int lit = 0;
     for (int j = 0; j < kGrid; ++j) {
       for (int i = 0; i < kGrid; ++i) {
-        const Eigen::Vector2d p = sample.region_min_m + Eigen::Vector2d((i + 0.5) / kGrid, (j + 0.5) / kGrid).cwiseProduct(
-                                                            sample.region_max_m - sample.region_min_m);
+        const Eigen::Vector2d p = sample.region_min_m + Eigen::Vector2d((i + 0.5) / kGrid, (j + 0.5) / kGrid)
+                                                            .cwiseProduct(sample.region_max_m - sample.region_min_m);
         const Eigen::Vector3d on_board = Eigen::Vector3d(p.x(), p.y(), 0) + (d / -along.z()) * along;
         Eigen::Vector2d pixel;
         if (!ProjectSamplePoint(context.camera, on_board, &pixel)) continue;
@@ -663,9 +677,9 @@ class CaptureChecker {
     geometry_options.dot_radius_px = ResolveDotRadiusPx(0, session_.rig.monitor, &radius_source);
     DotGeometryResult geometry;
     std::string source;
-    const Status measured = MeasureAllDotsGeometry(dir_, session_, context.camera,
-                                                   context.calibration.response_or_null(), displayed,
-                                                   geometry_options, &geometry, &source);
+    const Status measured =
+        MeasureAllDotsGeometry(dir_, session_, context.camera, context.calibration.response_or_null(), displayed,
+                               geometry_options, &geometry, &source);
     if (!measured.ok()) {
       Add(CheckSeverity::kRetake, "dots", "the dots of the all-dots frame: " + measured.message());
       return Status::Ok();
@@ -709,7 +723,8 @@ class CaptureChecker {
       if (values.size() >= 3 && t_a != t_b && std::abs(reference[key] - 1) > kExposureCheckTolerance) {
         Add(CheckSeverity::kNote, "exposure_times",
             "'" + kind + "' frames at " + Exposure(t_b) + " are x" + Fixed(reference[key], 4) + " those at " +
-                Exposure(t_a) + " beyond the exposure ratio, in every state: the camera applies other exposures "
+                Exposure(t_a) +
+                " beyond the exposure ratio, in every state: the camera applies other exposures "
                 "than it reports (calib hdr --exposures measured corrects the merge)");
       }
     }
@@ -734,10 +749,12 @@ class CaptureChecker {
       std::vector<int> frames;
       for (const PairRecord* q : list) frames.push_back(q->frame_b);
       Add(CheckSeverity::kRetake, "moved",
-          "'" + kind + "': " + std::to_string(list.size()) + " frame pair(s) of one light state differ beyond the "
-              "noise, e.g. frames " + std::to_string(p.frame_a) + " and " + std::to_string(p.frame_b) + " of " +
-              p.state + " in " + Percent(p.comparison.outlier_fraction) + " of " +
-              std::to_string(p.comparison.pixels) + " pixels (> " + Fixed(options_.pair.outlier_sigmas, 0) +
+          "'" + kind + "': " + std::to_string(list.size()) +
+              " frame pair(s) of one light state differ beyond the "
+              "noise, e.g. frames " +
+              std::to_string(p.frame_a) + " and " + std::to_string(p.frame_b) + " of " + p.state + " in " +
+              Percent(p.comparison.outlier_fraction) + " of " + std::to_string(p.comparison.pixels) + " pixels (> " +
+              Fixed(options_.pair.outlier_sigmas, 0) +
               " sigma): the sample, board or camera moved between them, or the light changed its shape",
           frames);
     }
@@ -747,9 +764,10 @@ class CaptureChecker {
       std::vector<int> frames;
       for (const PairRecord* q : list) frames.push_back(q->frame_b);
       Add(CheckSeverity::kRetake, "flicker",
-          "'" + kind + "': " + std::to_string(list.size()) + " frame pair(s) changed brightness as a whole, e.g. frame " +
-              std::to_string(p.frame_b) + " of " + p.state + " is x" + Fixed(p.normalized() / ref, 4) +
-              " of what frame " + std::to_string(p.frame_a) + " and the exposure ratio predict: the light flickered "
+          "'" + kind + "': " + std::to_string(list.size()) +
+              " frame pair(s) changed brightness as a whole, e.g. frame " + std::to_string(p.frame_b) + " of " +
+              p.state + " is x" + Fixed(p.normalized() / ref, 4) + " of what frame " + std::to_string(p.frame_a) +
+              " and the exposure ratio predict: the light flickered "
               "or drifted, or the shutter did not apply the exposure",
           frames);
     }
@@ -764,7 +782,8 @@ class CaptureChecker {
   }
 
   void SummariseKind(const std::string& kind, const std::vector<const StateRecord*>& states,
-                     std::map<std::string, std::pair<double, double>>& worst_pair, std::map<std::string, int>& pair_count) {
+                     std::map<std::string, std::pair<double, double>>& worst_pair,
+                     std::map<std::string, int>& pair_count) {
     CheckedKind k;
     k.label = kind;
     k.states = static_cast<int>(states.size());
@@ -816,20 +835,21 @@ class CaptureChecker {
       const double fraction = static_cast<double>(k.underexposed_states) / k.lit;
       const bool many_states = k.lit > 8;
       const CheckSeverity severity = !many_states || fraction > 0.5 ? CheckSeverity::kRetake
-                                     : fraction > 0.25          ? CheckSeverity::kWarning
-                                                                : CheckSeverity::kNote;
+                                     : fraction > 0.25              ? CheckSeverity::kWarning
+                                                                    : CheckSeverity::kNote;
       Add(severity, "exposure",
-          what + std::to_string(k.underexposed_states) + " of " + std::to_string(k.lit) +
-              " lit state(s) peak below " + Fixed(options_.min_peak_sigmas, 0) + " noise sigmas in their longest " +
-              "exposure (" + Exposure(k.longest_us) + "): nothing to fit there; lengthen the longest exposure, " +
+          what + std::to_string(k.underexposed_states) + " of " + std::to_string(k.lit) + " lit state(s) peak below " +
+              Fixed(options_.min_peak_sigmas, 0) + " noise sigmas in their longest " + "exposure (" +
+              Exposure(k.longest_us) + "): nothing to fit there; lengthen the longest exposure, " +
               "brighten the light, or check that it reaches the sample",
           underexposed);
     }
     if (k.lit > 0 && k.underexposed_states < k.lit && std::isfinite(k.max_range_fraction) && k.max_range_fraction > 0 &&
         k.max_range_fraction < options_.min_range_fraction) {
       Add(CheckSeverity::kWarning, "exposure",
-          what + "the brightest state peaks at " + Percent(k.max_range_fraction) + " of the range in the longest exposure (" +
-              Exposure(k.longest_us) + "): a longer exposure would gain signal to noise");
+          what + "the brightest state peaks at " + Percent(k.max_range_fraction) +
+              " of the range in the longest exposure (" + Exposure(k.longest_us) +
+              "): a longer exposure would gain signal to noise");
     }
   }
 

@@ -20,10 +20,9 @@
 // re-take; the verdict is "good", "usable" or "retake".
 #pragma once
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "thinslab/calib/frame_consistency.h"
 #include "thinslab/core/status.h"
@@ -77,13 +76,13 @@ struct CheckedKind {
   std::string label;
   int states = 0, frames = 0, exposures = 0;
   double shortest_us = 0, longest_us = 0;
-  int saturated_states = 0;            // Some pixel clipped in the shortest exposure.
+  int saturated_states = 0;  // Some pixel clipped in the shortest exposure.
   double worst_saturated_fraction = 0;
-  int lit = 0;                         // States expected to show light (not dark).
-  int underexposed_states = 0;         // Lit states peaking below min_peak_sigmas.
-  double median_peak_sigmas = 0;       // Over lit states, in the longest exposure.
-  double max_range_fraction = 0;       // Brightest state's peak / range in its longest exposure.
-  int frame_pairs = 0;                 // Pairs compared (measured).
+  int lit = 0;                    // States expected to show light (not dark).
+  int underexposed_states = 0;    // Lit states peaking below min_peak_sigmas.
+  double median_peak_sigmas = 0;  // Over lit states, in the longest exposure.
+  double max_range_fraction = 0;  // Brightest state's peak / range in its longest exposure.
+  int frame_pairs = 0;            // Pairs compared (measured).
   double worst_moved_fraction = 0;
   double worst_brightness_change = 0;  // |ratio / reference - 1|.
 };
@@ -98,7 +97,7 @@ struct CaptureCheck {
   // What the geometry checks measured, one line each ("board: ...", "beam: ...", "dots: ...").
   std::vector<std::string> geometry;
   std::vector<CheckFinding> findings;
-  std::string verdict() const;  // "good" (no warning or re-take), "usable" (warnings), "retake".
+  std::string verdict() const;   // "good" (no warning or re-take), "usable" (warnings), "retake".
   std::string Describe() const;  // For people: one line per kind, one per finding, the verdict.
   nlohmann::ordered_json ToJson() const;
 };

@@ -10,10 +10,10 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "thinslab/core/frame_io.h"
-#include "thinslab/core/session_io.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
+#include "thinslab/core/frame_io.h"
+#include "thinslab/core/session_io.h"
 
 namespace thinslab {
 namespace {
@@ -35,7 +35,8 @@ void EditFrame(const std::string& capture, int index, Edit edit) {
   ASSERT_TRUE(LoadFrame(capture, session, frame, &image).ok());
   Image edited = image;
   for (int y = 0; y < image.height(); ++y) {
-    for (int x = 0; x < image.width(); ++x) edited.at(x, y) = static_cast<float>(edit(image, x, y) + camera.black_level_dn);
+    for (int x = 0; x < image.width(); ++x)
+      edited.at(x, y) = static_cast<float>(edit(image, x, y) + camera.black_level_dn);
   }
   ASSERT_TRUE(WriteRawFrame((fs::path(capture) / frame.file).string(), edited, camera.bit_depth).ok());
 }
@@ -136,7 +137,8 @@ TEST_F(CliCheckTest, SaturationAndUnderexposureAreRetakes) {
 // region moved off the spot, the fit could not use it (a re-take).
 TEST_F(CliCheckTest, ALaserSpotAwayFromTheManifestsBeamOrRegionIsFound) {
   const std::string capture = *dir_ / "laser";
-  const RunResult sim = RunThinslab("sim laser " + capture + " --camera-width-px 96 --camera-height-px 72 --photons 20000");
+  const RunResult sim =
+      RunThinslab("sim laser " + capture + " --camera-width-px 96 --camera-height-px 72 --photons 20000");
   ASSERT_EQ(sim.exit_code, 0) << sim.output;
   RunResult r = RunThinslab("check " + capture);
   EXPECT_EQ(r.exit_code, 0) << r.output;

@@ -7,10 +7,10 @@
 
 #include <filesystem>
 
-#include "thinslab/core/session_io.h"
-#include "thinslab/core/session_recovery.h"
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/session_recovery.h"
 
 namespace thinslab {
 namespace {
