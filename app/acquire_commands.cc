@@ -913,13 +913,14 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
     }
     dots.validation_dots_px = DotScanValidationDots(dots, validation_dots);
   }
+  std::string error;
+  const bool checked = dot_scan ? dots.Check(&error) : gamma ? gamma_session.Check(&error) : bracket_session.Check(&error);
+  if (!checked) return Fail(Status::Error(error));
+  // After the checks: the probe's dots come from the grid.
   if (plan_exposures) {
     status = PlanDotScanBracket(common, dots, camera, &projector, change, display->refresh_period_s(), &plan);
     if (!status.ok()) return Fail(status);
   }
-  std::string error;
-  const bool checked = dot_scan ? dots.Check(&error) : gamma ? gamma_session.Check(&error) : bracket_session.Check(&error);
-  if (!checked) return Fail(Status::Error(error));
   const double period = display->refresh_period_s();
   const int planned = static_cast<int>(dot_scan ? PlanDotScan(dots, period).size()
                                        : gamma  ? PlanDisplayGammaSession(gamma_session, period).size()
