@@ -505,12 +505,15 @@ class CaptureChecker {
     const LoadedFrame& longest = frames.back();
     // The brightest pixel (a dot's image can be one pixel; hot pixels are in the dark subtracted).
     // Over the unclipped pixels; a state with clipped pixels has light enough (infinite sigmas).
+    const auto dark = context.dark_raw.find(longest.record->exposure_time_us);
+    const double clip = options_.pair.max_saturation_fraction * context.saturation;
     double peak = -kInf, variance = 1;
     bool clipped = false;
     for (size_t i = 0; i < longest.signal.data().size(); ++i) {
       const double v = longest.variance.data()[i];
       if (!std::isfinite(v)) {
-        clipped = true;
+        // Light, unless a hot pixel clipped in the dark frame too.
+        clipped = clipped || dark == context.dark_raw.end() || dark->second.data()[i] < clip;
       } else if (longest.signal.data()[i] > peak) {
         peak = longest.signal.data()[i];
         variance = v;

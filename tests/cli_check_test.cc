@@ -126,6 +126,13 @@ TEST_F(CliCheckTest, SaturationAndUnderexposureAreRetakes) {
 
   const RunResult dim = RunThinslab(ShadowArgs(*dir_ / "dim", "--reference-fill 0.0005 --frames 1"));
   ASSERT_EQ(dim.exit_code, 0) << dim.output;
+  // A hot pixel, saturated in every frame and dark: it neither saturates nor lights a state.
+  Session session;
+  ASSERT_TRUE(ReadSession(*dir_ / "dim", &session).ok());
+  for (const FrameRecord& f : session.frames) {
+    EditFrame(*dir_ / "dim", f.index,
+              [](const Image& image, int x, int y) { return x == 5 && y == 5 ? 1e6 : image.at(x, y); });
+  }
   r = RunThinslab("check " + *dir_ / "dim");
   EXPECT_EQ(r.exit_code, kRetake) << r.output;
   EXPECT_TRUE(Has(r.output, "retake [exposure]: 'reference, clean'")) << r.output;
