@@ -221,14 +221,15 @@ TEST_F(CliAcquireTest, KilledMidScanAndResumedEqualsAnUninterruptedRun) {
 
 TEST_F(CliAcquireTest, FoldJournalWritesAKilledCapturesFramesAndARunningCaptureKeepsOthersOut) {
   const std::string session = *dir_ / "folded";
-  // 300 ms exposures: 18 frames take ~5.5 s, time to try the folder while the capture runs.
-  const pid_t pid = SpawnUntil(ShadowArgs(session, 300000), session, 4);
+  // 800 ms exposures: 18 frames take ~15 s, time to try the folder while the capture runs (at 300 ms
+  // a slow machine under the sanitizers finished the capture before the kill).
+  const pid_t pid = SpawnUntil(ShadowArgs(session, 800000), session, 4);
   ASSERT_GT(pid, 0);
   const std::string in_use = "in use by another thinslab acquire (process " + std::to_string(pid) + ")";
   const RunResult fold_running = RunThinslab("acquire fold-journal " + session);
   EXPECT_NE(fold_running.exit_code, 0);
   EXPECT_NE(fold_running.output.find(in_use), std::string::npos) << fold_running.output;
-  const RunResult resume_running = RunThinslab(ShadowArgs(session, 300000) + " --resume");
+  const RunResult resume_running = RunThinslab(ShadowArgs(session, 800000) + " --resume");
   EXPECT_NE(resume_running.exit_code, 0);
   EXPECT_NE(resume_running.output.find(in_use), std::string::npos) << resume_running.output;
   // `info` tells a capture in progress from a killed one (both are state "running").
@@ -276,7 +277,7 @@ TEST_F(CliAcquireTest, FoldJournalWritesAKilledCapturesFramesAndARunningCaptureK
   EXPECT_NE(again.output.find("nothing written"), std::string::npos) << again.output;
 
   // The folded session resumes to the whole plan, nothing duplicated.
-  const RunResult resumed = RunThinslab(ShadowArgs(session, 300000) + " --resume");
+  const RunResult resumed = RunThinslab(ShadowArgs(session, 800000) + " --resume");
   ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
   Session complete;
   ASSERT_TRUE(ReadSession(session, &complete).ok());
