@@ -7,6 +7,7 @@
 #include <limits>
 #include <sstream>
 
+#include "thinslab/core/duration_text.h"
 #include "thinslab/core/statistics.h"
 #include "thinslab/drivers/pattern_id.h"
 
@@ -38,18 +39,6 @@ bool ExposurePlanOptions::Check(std::string* error) const {
 }
 
 namespace {
-
-std::string Us(double us) {
-  std::ostringstream s;
-  s << std::setprecision(4);
-  if (us >= 1e6)
-    s << us / 1e6 << " s";
-  else if (us >= 1e3)
-    s << us / 1e3 << " ms";
-  else
-    s << us << " us";
-  return s.str();
-}
 
 std::string Num(double v) {
   std::ostringstream s;
@@ -87,15 +76,16 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
   // Shortest: the brightest peak at peak_fill of the range.
   double shortest = std::max(floor_us, options.peak_fill * range / brightest.peak_dn_per_us);
   if (period_us > 0) shortest = std::max(1.0, std::floor(shortest / period_us)) * period_us;
-  why << "shortest " << Us(shortest) << ": " << brightest.label << " peaks at " << Num(brightest.peak_dn_per_us)
-      << " DN/us" << (brightest.saturated ? " (at least: saturated in the shortest probe)" : "") << ", "
+  why << "shortest " << DurationText(shortest) << ": " << brightest.label << " peaks at "
+      << Num(brightest.peak_dn_per_us) << " DN/us"
+      << (brightest.saturated ? " (at least: saturated in the shortest probe)" : "") << ", "
       << Num(100 * brightest.peak_dn_per_us * shortest / range) << " % of the range there";
   // Longest: the dimmest lobe's edge above the noise, the glow below its limit, the cap.
   const double gain = camera.gain_e_per_dn > 0 ? camera.gain_e_per_dn : 1.0;
   const double read_dn = camera.read_noise_dn.value_or(2.0);
   const double glow = std::max(black.peak_dn_per_us, 0.0);
   double longest = options.max_exposure_us;
-  std::string longest_reason = "the cap (" + Us(options.max_exposure_us) + ")";
+  std::string longest_reason = "the cap (" + DurationText(options.max_exposure_us) + ")";
   double edge_us = 0;
   std::string edge_label;
   for (const ProbeMeasurement& lobe : lobes) {
@@ -116,13 +106,13 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
     longest = options.max_dark_fraction * range / glow;
     longest_reason = "the display's black glow (" + Num(glow) + " DN/us, 99th percentile) at " +
                      Num(100 * options.max_dark_fraction) + " % of the range" +
-                     (edge_us > longest ? "; the dimmest lobe's edge would need " + Us(edge_us) +
+                     (edge_us > longest ? "; the dimmest lobe's edge would need " + DurationText(edge_us) +
                                               ": its tails stay noisier than planned"
                                         : std::string());
   }
   if (period_us > 0) longest = std::max(1.0, std::floor(longest / period_us)) * period_us;
   longest = std::max(longest, shortest);
-  why << "; longest " << Us(longest) << ": " << longest_reason;
+  why << "; longest " << DurationText(longest) << ": " << longest_reason;
   ExposureBracketOptions bracket;
   bracket.refresh_period_s = refresh_period_s;
   if (longest <= shortest * (1 + 1e-9)) {

@@ -16,6 +16,7 @@
 #include "thinslab/calib/hdr_merge.h"
 #include "thinslab/calib/session_calibration.h"
 #include "thinslab/core/camera_model.h"
+#include "thinslab/core/duration_text.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/frame_io.h"
 #include "thinslab/core/math.h"
@@ -87,18 +88,6 @@ std::string Fixed(double v, int digits) {
 
 std::string Percent(double fraction) { return Fixed(100 * fraction, fraction < 0.01 ? 3 : 1) + " %"; }
 
-std::string Exposure(double us) {
-  std::ostringstream s;
-  s << std::setprecision(4);
-  if (us >= 1e6)
-    s << us / 1e6 << " s";
-  else if (us >= 1e3)
-    s << us / 1e3 << " ms";
-  else
-    s << us << " us";
-  return s.str();
-}
-
 std::string FrameList(const std::vector<int>& frames) {
   std::string s;
   for (size_t i = 0; i < frames.size(); ++i) s += (i ? ", " : "") + std::to_string(frames[i]);
@@ -113,7 +102,8 @@ std::string CaptureCheck::Describe() const {
   out << "  noise: " << noise << "; response: " << (response.empty() ? "linear" : response) << "\n";
   for (const CheckedKind& k : kinds) {
     out << "  " << k.label << ": " << k.states << " state(s), " << k.frames << " frames, " << k.exposures
-        << " exposure(s) " << Exposure(k.shortest_us) << (k.exposures > 1 ? " .. " + Exposure(k.longest_us) : "");
+        << " exposure(s) " << DurationText(k.shortest_us)
+        << (k.exposures > 1 ? " .. " + DurationText(k.longest_us) : "");
     if (k.lit > 0) {
       out << "; saturated at the shortest: " << k.saturated_states << " (worst " << Percent(k.worst_saturated_fraction)
           << " of a frame); peak at the longest: median " << Fixed(k.median_peak_sigmas, 0) << " sigma, "
@@ -412,7 +402,7 @@ class CaptureChecker {
     const double level = Quantile(dark.data(), 0.99) / context.saturation;
     if (level > options_.max_dark_fraction) {
       Add(CheckSeverity::kWarning, "dark",
-          "the dark frame at " + Exposure(exposure) + " fills " + Percent(level) +
+          "the dark frame at " + DurationText(exposure) + " fills " + Percent(level) +
               " of the range (99th percentile): a display's black glow or stray light takes the range and adds "
               "its shot noise to every lit frame; darken the room or the display (a shorter longest exposure "
               "loses more signal than glow: docs/acquisition.md, \"Exposure planning\")",
@@ -725,8 +715,8 @@ class CaptureChecker {
       const auto& [kind, t_a, t_b] = key;
       if (values.size() >= 3 && t_a != t_b && std::abs(reference[key] - 1) > kExposureCheckTolerance) {
         Add(CheckSeverity::kNote, "exposure_times",
-            "'" + kind + "' frames at " + Exposure(t_b) + " are x" + Fixed(reference[key], 4) + " those at " +
-                Exposure(t_a) +
+            "'" + kind + "' frames at " + DurationText(t_b) + " are x" + Fixed(reference[key], 4) + " those at " +
+                DurationText(t_a) +
                 " beyond the exposure ratio, in every state: the camera applies other exposures "
                 "than it reports (calib hdr --exposures measured corrects the merge)");
       }
@@ -827,7 +817,7 @@ class CaptureChecker {
       const bool lost = k.worst_saturated_fraction > options_.max_saturated_fraction;
       Add(lost ? CheckSeverity::kRetake : CheckSeverity::kWarning, "saturation",
           what + std::to_string(k.saturated_states) + " of " + std::to_string(k.states) +
-              " state(s) saturate in their shortest exposure (" + Exposure(k.shortest_us) + "; worst " +
+              " state(s) saturate in their shortest exposure (" + DurationText(k.shortest_us) + "; worst " +
               Percent(k.worst_saturated_fraction) + " of a frame" + (lost ? "" : ", below the re-take threshold") +
               "): those pixels are lost in every exposure; add a shorter exposure or dim the light",
           saturated);
@@ -843,7 +833,7 @@ class CaptureChecker {
       Add(severity, "exposure",
           what + std::to_string(k.underexposed_states) + " of " + std::to_string(k.lit) + " lit state(s) peak below " +
               Fixed(options_.min_peak_sigmas, 0) + " noise sigmas in their longest " + "exposure (" +
-              Exposure(k.longest_us) + "): nothing to fit there; lengthen the longest exposure, " +
+              DurationText(k.longest_us) + "): nothing to fit there; lengthen the longest exposure, " +
               "brighten the light, or check that it reaches the sample",
           underexposed);
     }
@@ -851,7 +841,7 @@ class CaptureChecker {
         k.max_range_fraction < options_.min_range_fraction) {
       Add(CheckSeverity::kWarning, "exposure",
           what + "the brightest state peaks at " + Percent(k.max_range_fraction) +
-              " of the range in the longest exposure (" + Exposure(k.longest_us) +
+              " of the range in the longest exposure (" + DurationText(k.longest_us) +
               "): a longer exposure would gain signal to noise");
     }
   }
