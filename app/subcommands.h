@@ -29,6 +29,7 @@ const std::vector<Subcommand>& FitSubcommands();      // app/fit_commands.cc
 const std::vector<Subcommand>& CalibSubcommands();    // app/calib_commands.cc
 const std::vector<Subcommand>& SynthSubcommands();    // app/synth_commands.cc
 const std::vector<Subcommand>& BenchSubcommands();    // app/bench_command.cc
+const std::vector<Subcommand>& ExportSubcommands();   // app/export_command.cc
 const std::vector<Subcommand>& AcquireSubcommands();  // app/acquire_commands.cc (thinslab_app)
 
 }  // namespace thinslab

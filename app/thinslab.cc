@@ -53,6 +53,7 @@ const std::vector<Command>& Commands() {
       {"fit", thinslab::RunFit, "fit a model to a capture", thinslab::FitSubcommands},
       {"predict", thinslab::RunPredict, "what a fit (tau, phase, dmf) predicts for light states it was not fitted to",
        nullptr},
+      {"export", thinslab::RunExport, "a fit as a Mitsuba 3, pbrt-v4 or Blender scene", thinslab::ExportSubcommands},
       {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy", nullptr},
       {"synth", thinslab::RunSynth, "synthesize contamination layers from measured prototypes", thinslab::SynthSubcommands},
       {"bench", thinslab::RunBench, "speed against accuracy of the fit knobs", thinslab::BenchSubcommands},

@@ -55,7 +55,7 @@ function(thinslab_add_test_entry)
   cmake_parse_arguments(ARG "" "NAME;EXE;TIMEOUT;GTEST_FILTER" "LABELS" ${ARGN})
   # The device-free stages' tests carry the label `refit` (the refit-only tree runs them, and
   # the target thinslab_refit_tests builds them).
-  if(ARG_NAME MATCHES "^(core|optics|calib|fit|pipeline)/")
+  if(ARG_NAME MATCHES "^(core|optics|calib|fit|pipeline|export)/")
     list(APPEND ARG_LABELS refit)
     add_dependencies(thinslab_refit_tests ${ARG_EXE})
   endif()

@@ -11,12 +11,12 @@ set(THINSLAB_INSTALL_DATADIR ${CMAKE_INSTALL_DATADIR}/thinslab/data)
 
 # Umbrella targets: what a refit program links, and what an acquisition program adds.
 add_library(thinslab_refit INTERFACE)
-target_link_libraries(thinslab_refit INTERFACE thinslab_pipeline thinslab_fit thinslab_calib thinslab_optics
+target_link_libraries(thinslab_refit INTERFACE thinslab_export thinslab_pipeline thinslab_fit thinslab_calib thinslab_optics
                                                thinslab_core)
 add_library(thinslab_devices INTERFACE)
 target_link_libraries(thinslab_devices INTERFACE thinslab_acquire thinslab_drivers)
 set(thinslab_exported thinslab_core thinslab_optics thinslab_display_patterns thinslab_drivers thinslab_acquire
-    thinslab_calib thinslab_fit thinslab_pipeline thinslab_sim thinslab_synth thinslab_refit thinslab_devices)
+    thinslab_calib thinslab_fit thinslab_pipeline thinslab_export thinslab_sim thinslab_synth thinslab_refit thinslab_devices)
 foreach(backend thinslab_aravis thinslab_v4l2 thinslab_display thinslab_usb_laser)
   if(TARGET ${backend})
     target_link_libraries(thinslab_devices INTERFACE ${backend})

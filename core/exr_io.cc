@@ -345,4 +345,24 @@ Status ReadExr(const std::string& path, Image* image) {
   }
 }
 
+Status RequireChannel(const Image& image, const std::string& file, const std::string& name, int* index) {
+  *index = image.ChannelIndex(name);
+  if (*index < 0) return Status::Error(file + ": channel '" + name + "' is missing");
+  return Status::Ok();
+}
+
+Status RequireNumericAttribute(const Image& image, const std::string& file, const std::string& key, size_t count,
+                               std::vector<double>* values, const std::string& hint) {
+  const std::vector<double>* found = image.NumericAttribute(key, count);
+  if (found == nullptr) {
+    return Status::Error(file + ": numeric attribute '" + key + "' with " + std::to_string(count) + " value(s) is missing" +
+                         (hint.empty() ? "" : " (" + hint + ")"));
+  }
+  for (double v : *found) {
+    if (!std::isfinite(v)) return Status::Error(file + ": attribute '" + key + "' is not finite");
+  }
+  *values = *found;
+  return Status::Ok();
+}
+
 }  // namespace thinslab

@@ -39,4 +39,12 @@ Status WriteMapExr(const std::string& path, const Image& map, const MapExrLayout
 // Errors (missing, truncated, corrupt) name the file.
 Status ReadExr(const std::string& path, Image* image);
 
+// The index of channel `name` of an image read from `file`; an error naming both when it is absent.
+Status RequireChannel(const Image& image, const std::string& file, const std::string& name, int* index);
+// The `count` finite values of numeric attribute `key`; an error naming the file and the key when
+// it is absent, has another size or holds a non-finite value. `hint` ends the message (e.g. "fit
+// again"), "" for none.
+Status RequireNumericAttribute(const Image& image, const std::string& file, const std::string& key, size_t count,
+                               std::vector<double>* values, const std::string& hint = "");
+
 }  // namespace thinslab

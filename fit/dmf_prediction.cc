@@ -16,31 +16,18 @@ namespace thinslab {
 
 namespace {
 
+// What a fit written before a field existed is told.
+constexpr char kFitAgain[] = "fitted before `thinslab predict` existed? fit again";
+
 // A numeric header attribute of `count` values (core/exr_io.h reads format 1.0's JSON text too).
 Status NumericAttribute(const Image& image, const std::string& file, const std::string& key, size_t count,
                         std::vector<double>* values) {
-  const std::vector<double>* found = image.NumericAttribute(key, count);
-  if (found == nullptr) {
-    return Status::Error(file + ": numeric attribute '" + key + "' with " + std::to_string(count) +
-                         " value(s) is missing (fitted before `thinslab predict` existed? fit again)");
-  }
-  for (double v : *found) {
-    if (!std::isfinite(v)) return Status::Error(file + ": attribute '" + key + "' is not finite");
-  }
-  *values = *found;
-  return Status::Ok();
-}
-
-Status Channel(const Image& image, const std::string& file, const std::string& name, int* index) {
-  *index = image.ChannelIndex(name);
-  if (*index < 0) return Status::Error(file + ": channel '" + name + "' is missing");
-  return Status::Ok();
+  return RequireNumericAttribute(image, file, key, count, values, kFitAgain);
 }
 
 Status Number(const nlohmann::json& j, const std::string& file, const std::string& field, double* out) {
   if (!j.is_number() || !std::isfinite(j.get<double>())) {
-    return Status::Error(file + ": " + field + " is missing or not a finite number (fitted before `thinslab predict` "
-                                              "existed? fit again)");
+    return Status::Error(file + ": " + field + " is missing or not a finite number (" + kFitAgain + ")");
   }
   *out = j.get<double>();
   return Status::Ok();
@@ -100,11 +87,11 @@ Status ReadDmfFit(const std::string& fit_dir, DmfFitOnDisk* fit) {
   fit->maps.eta = eta[0];
   if (!(fit->pitch_m > 0) || !(fit->maps.eta > 1)) return Status::Error(maps_file + ": needs pixel_pitch_m > 0, eta > 1");
   int c_alpha, c_smith, c_k_s, c_rho_d, c_status;
-  THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "top_face_weight", &c_alpha));
-  THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "smith_alpha", &c_smith));
-  THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "k_s", &c_k_s));
-  THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "rho_d", &c_rho_d));
-  THINSLAB_RETURN_IF_ERROR(Channel(maps, maps_file, "status", &c_status));
+  THINSLAB_RETURN_IF_ERROR(RequireChannel(maps, maps_file, "top_face_weight", &c_alpha));
+  THINSLAB_RETURN_IF_ERROR(RequireChannel(maps, maps_file, "smith_alpha", &c_smith));
+  THINSLAB_RETURN_IF_ERROR(RequireChannel(maps, maps_file, "k_s", &c_k_s));
+  THINSLAB_RETURN_IF_ERROR(RequireChannel(maps, maps_file, "rho_d", &c_rho_d));
+  THINSLAB_RETURN_IF_ERROR(RequireChannel(maps, maps_file, "status", &c_status));
 
   Image atlas;
   THINSLAB_RETURN_IF_ERROR(ReadExr(atlas_file, &atlas));
@@ -112,7 +99,7 @@ Status ReadDmfFit(const std::string& fit_dir, DmfFitOnDisk* fit) {
   THINSLAB_RETURN_IF_ERROR(NumericAttribute(atlas, atlas_file, "ndf_resolution", 1, &resolution));
   THINSLAB_RETURN_IF_ERROR(NumericAttribute(atlas, atlas_file, "atlas_stride", 1, &stride));
   int c_d;
-  THINSLAB_RETURN_IF_ERROR(Channel(atlas, atlas_file, "D", &c_d));
+  THINSLAB_RETURN_IF_ERROR(RequireChannel(atlas, atlas_file, "D", &c_d));
   if (resolution[0] != std::floor(resolution[0]) || stride[0] != std::floor(stride[0]) || resolution[0] < 2 ||
       resolution[0] > 4096 || stride[0] < 1 || stride[0] > 65536) {
     return Status::Error(atlas_file + ": ndf_resolution and atlas_stride must be integers >= 2 and >= 1");

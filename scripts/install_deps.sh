@@ -8,6 +8,7 @@ packages=(
   build-essential
   cmake
   ninja-build
+  ccache
   pkg-config
   libceres-dev
   libeigen3-dev
@@ -37,6 +38,7 @@ packages=(
   python3-openimageio
   python3-opencv
   chromium
+  blender
   bc
 )
 

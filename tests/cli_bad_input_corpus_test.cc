@@ -701,6 +701,20 @@ std::vector<Case> Cases() {
         {"rig.sample", "tau.exr"}),
       C("predict_out_is_capture", "dots", none, "predict {in} --out {in}", {"{in}"}),
 
+      // ---- thinslab export ----
+      C("export_unknown_renderer", "shadow_fit", none, "export povray {in}/fit/tau {out}", {"povray"}),
+      C("export_not_a_fit", "shadow", none, "export mitsuba {in} {out}", {"{in}", "holds no maps.exr"}),
+      C("export_tau_truncated", "shadow_fit", Truncate("{in}/fit/tau/tau.exr", 200), "export pbrt {in}/fit/tau {out}",
+        {"tau.exr"}),
+      C("export_tau_summary_without_layer", "shadow_fit", Write("{in}/fit/tau/summary.json", "{}"),
+        "export blender {in}/fit/tau {out}", {"summary.json", "layer.g"}),
+      C("export_phase_of_shadow", "shadow_fit,laser_fit", none,
+        "export mitsuba {in}/fit/tau {out} --phase {laser_fit}/fit", {"--phase", "summary.json"}),
+      C("export_min_alpha_zero", "shadow_fit", none, "export pbrt {in}/fit/tau {out} --min-alpha 0", {"--min-alpha"}),
+      C("export_albedo_above_one", "layer", none, "export mitsuba {layer} {out} --albedo 2", {"--albedo"}),
+      C("export_out_inside_fit", "shadow_fit", none, "export pbrt {in}/fit/tau {in}/fit/tau/scene",
+        {"{in}/fit/tau"}),
+
       // ---- thinslab calib camera ----
       C("calib_camera_no_images", "", none, "calib camera --out {out}", {"IMAGES|--images"}),
       C("calib_camera_images_folder_empty", "", MakeDir("{case}/empty"),

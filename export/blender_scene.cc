@@ -1,0 +1,264 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "thinslab/export/blender_scene.h"
+
+#include <sstream>
+
+#include "thinslab/core/file.h"
+
+namespace thinslab {
+
+namespace {
+
+std::string Tuple(const Eigen::Vector3d& v) {
+  return "(" + SceneNumber(v.x()) + ", " + SceneNumber(v.y()) + ", " + SceneNumber(v.z()) + ")";
+}
+
+std::string Tuple(const Eigen::Vector2d& v) { return "(" + SceneNumber(v.x()) + ", " + SceneNumber(v.y()) + ")"; }
+
+// A comment line: no line breaks inside.
+std::string OneLine(std::string text) {
+  for (char& c : text) {
+    if (c == '\n' || c == '\r') c = ' ';
+  }
+  return text;
+}
+
+// What builds the scene from SCENE (the same for every export; the numbers come before it).
+constexpr char kBuilder[] = R"PY(
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def parse_args():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    parser = argparse.ArgumentParser(prog="scene.py", description="builds the exported thinslab scene")
+    parser.add_argument("--save", help="save the scene as this .blend file")
+    parser.add_argument("--render", help="render the camera's image to this PNG (or .exr) file")
+    parser.add_argument("--samples", type=int, default=64, help="Cycles samples per pixel")
+    parser.add_argument("--resolution-percent", type=int, default=100, help="image size in percent")
+    return parser.parse_args(argv)
+
+
+def link(obj):
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def rectangle(name, lo, hi, z, normal_down):
+    """The rectangle lo..hi at z; uv v = 1 - (y - lo.y) / height, as Blender puts an image's row 0 at v = 1."""
+    mesh = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    corners = [(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])]
+    verts = [bm.verts.new((x, y, z)) for x, y in corners]
+    face = bm.faces.new(list(reversed(verts)) if normal_down else verts)
+    uv = bm.loops.layers.uv.new("UVMap")
+    for loop in face.loops:
+        x, y = loop.vert.co.x, loop.vert.co.y
+        loop[uv].uv = ((x - lo[0]) / (hi[0] - lo[0]), 1.0 - (y - lo[1]) / (hi[1] - lo[1]))
+    bm.to_mesh(mesh)
+    bm.free()
+    return link(bpy.data.objects.new(name, mesh))
+
+
+def box(name, lo, hi, z0, z1):
+    mesh = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    verts = [bm.verts.new((x, y, z)) for z in (z0, z1) for x, y in
+             [(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])]]
+    for face in [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]:
+        bm.faces.new([verts[k] for k in face])
+    bm.to_mesh(mesh)
+    bm.free()
+    return link(bpy.data.objects.new(name, mesh))
+
+
+def data_image(nodes, relative_path):
+    texture = nodes.new("ShaderNodeTexImage")
+    texture.image = bpy.data.images.load(os.path.join(HERE, relative_path), check_existing=True)
+    texture.image.colorspace_settings.name = "Non-Color"
+    texture.interpolation = "Closest"
+    texture.extension = "EXTEND"
+    return texture
+
+
+def new_material(name):
+    material = bpy.data.materials.new(name)
+    material.use_nodes = True
+    material.node_tree.nodes.clear()
+    return material, material.node_tree.nodes, material.node_tree.links
+
+
+def glass(name, eta, distribution, alpha_texture):
+    material, nodes, links = new_material(name)
+    output = nodes.new("ShaderNodeOutputMaterial")
+    bsdf = nodes.new("ShaderNodeBsdfGlass")
+    bsdf.distribution = distribution
+    bsdf.inputs["IOR"].default_value = eta
+    if alpha_texture:
+        # Cycles squares its roughness input: roughness = sqrt(alpha).
+        root = nodes.new("ShaderNodeMath")
+        root.operation = "SQRT"
+        links.new(data_image(nodes, alpha_texture).outputs["Color"], root.inputs[0])
+        links.new(root.outputs[0], bsdf.inputs["Roughness"])
+    else:
+        bsdf.inputs["Roughness"].default_value = 0.0
+    links.new(bsdf.outputs["BSDF"], output.inputs["Surface"])
+    return material
+
+
+def layer_volume(layer):
+    material, nodes, links = new_material("layer")
+    output = nodes.new("ShaderNodeOutputMaterial")
+    coordinates = nodes.new("ShaderNodeTexCoord")
+    flip = nodes.new("ShaderNodeMapping")  # Generated y runs 0..1 from min y; the image's row 0 is v = 1.
+    flip.inputs["Scale"].default_value = (1.0, -1.0, 1.0)
+    flip.inputs["Location"].default_value = (0.0, 1.0, 0.0)
+    tau = data_image(nodes, layer["tau"])
+    links.new(coordinates.outputs["Generated"], flip.inputs["Vector"])
+    links.new(flip.outputs["Vector"], tau.inputs["Vector"])
+    scatter = nodes.new("ShaderNodeVolumeScatter")
+    scatter.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    scatter.inputs["Anisotropy"].default_value = layer["g"]
+    absorb = nodes.new("ShaderNodeVolumeAbsorption")
+    absorb.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)  # sigma_a = density (1 - colour).
+    for shader, per_metre in ((scatter, layer["albedo"] / layer["thickness"]),
+                              (absorb, (1.0 - layer["albedo"]) / layer["thickness"])):
+        density = nodes.new("ShaderNodeMath")
+        density.operation = "MULTIPLY"
+        density.inputs[1].default_value = per_metre
+        links.new(tau.outputs["Color"], density.inputs[0])
+        links.new(density.outputs[0], shader.inputs["Density"])
+    both = nodes.new("ShaderNodeAddShader")
+    links.new(scatter.outputs[0], both.inputs[0])
+    links.new(absorb.outputs[0], both.inputs[1])
+    links.new(both.outputs[0], output.inputs["Volume"])
+    return material
+
+
+def emission(name):
+    material, nodes, links = new_material(name)
+    output = nodes.new("ShaderNodeOutputMaterial")
+    emit = nodes.new("ShaderNodeEmission")
+    emit.inputs["Strength"].default_value = 1.0
+    links.new(emit.outputs["Emission"], output.inputs["Surface"])
+    return material
+
+
+def build():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    for bounces in ("max_bounces", "transmission_bounces", "transparent_max_bounces"):
+        setattr(scene.cycles, bounces, 64)
+    scene.cycles.volume_bounces = 16
+    scene.cycles.use_denoising = False  # Debian's Blender has no OpenImageDenoise.
+    scene.view_settings.view_transform = "Standard"
+    scene.render.resolution_x, scene.render.resolution_y = SCENE["image"]
+    world = bpy.data.worlds.new("black")
+    world.use_nodes = False
+    world.color = (0.0, 0.0, 0.0)
+    scene.world = world
+
+    lo = SCENE["grid_min"]
+    hi = (lo[0] + SCENE["grid_size"][0], lo[1] + SCENE["grid_size"][1])
+    slab = SCENE["slab"]
+    if slab:
+        rectangle("slab_camera_side", lo, hi, 0.0, False).data.materials.append(
+            glass("slab_camera_side", slab["eta"], slab["distribution"], slab["bottom_alpha"]))
+        rectangle("slab_monitor_side", lo, hi, -slab["thickness"], True).data.materials.append(
+            glass("slab_monitor_side", slab["eta"], slab["distribution"], slab["top_alpha"]))
+    layer = SCENE["layer"]
+    if layer:
+        box("layer", lo, hi, 0.0, layer["thickness"]).data.materials.append(layer_volume(layer))
+        pane = glass("pane", layer["glass_eta"], "SHARP", None)
+        top = -1e-6  # 1 um below the layer: coincident surfaces would intersect ambiguously.
+        rectangle("pane_camera_side", lo, hi, top, False).data.materials.append(pane)
+        rectangle("pane_monitor_side", lo, hi, top - layer["glass_thickness"], True).data.materials.append(pane)
+    light = SCENE["backlight"]
+    centre = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
+    half = light["half_size"]
+    rectangle("backlight", (centre[0] - half, centre[1] - half), (centre[0] + half, centre[1] + half),
+              -light["distance"], False).data.materials.append(emission("backlight"))
+
+    camera_data = bpy.data.cameras.new("camera")
+    camera_data.sensor_fit = "HORIZONTAL"
+    camera_data.angle_x = SCENE["fov_x"]
+    camera_data.clip_start = 1e-4
+    camera_data.clip_end = 100.0
+    camera = link(bpy.data.objects.new("camera", camera_data))
+    eye, target, up = (Vector(SCENE["camera"][key]) for key in ("eye", "target", "up"))
+    back = (eye - target).normalized()  # Blender cameras look along their -z, +y up.
+    right = up.cross(back).normalized()
+    true_up = back.cross(right)
+    camera.matrix_world = Matrix([[right.x, true_up.x, back.x, eye.x], [right.y, true_up.y, back.y, eye.y],
+                                  [right.z, true_up.z, back.z, eye.z], [0, 0, 0, 1]])
+    scene.camera = camera
+    return scene
+
+
+def main():
+    args = parse_args()
+    scene = build()
+    scene.cycles.samples = args.samples
+    scene.render.resolution_percentage = args.resolution_percent
+    print("thinslab scene:", ", ".join(sorted(obj.name for obj in scene.objects)))
+    if args.save:
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.save))
+    if args.render:
+        path = os.path.abspath(args.render)
+        scene.render.image_settings.file_format = "OPEN_EXR" if path.endswith(".exr") else "PNG"
+        scene.render.filepath = path
+        bpy.ops.render.render(write_still=True)
+
+
+main()
+)PY";
+
+}  // namespace
+
+std::string BlenderScript(const RenderScene& scene, const SceneTextures& textures) {
+  const SceneCamera camera = CameraOf(scene);
+  std::ostringstream out;
+  out << "# thinslab export blender of " << OneLine(scene.source) << " (docs/export.md).\n"
+      << "# Units: metres. Frame: the sample plane is z = 0, the camera on +z, the backlight on -z.\n";
+  for (const std::string& note : scene.notes) out << "# - " << OneLine(note) << "\n";
+  out << "#\n# blender -b --factory-startup --python-exit-code 1 --python scene.py -- [--save FILE.blend] "
+         "[--render FILE.png] [--samples N]\n"
+      << "import argparse\nimport os\nimport sys\n\nimport bmesh\nimport bpy\nfrom mathutils import Matrix, Vector\n\n"
+      << "SCENE = {\n"
+      << "    \"grid_min\": " << Tuple(scene.grid.min_m) << ",\n"
+      << "    \"grid_size\": " << Tuple(scene.grid.size_m()) << ",\n"
+      << "    \"image\": (" << scene.image_width << ", " << scene.image_height << "),\n"
+      << "    \"fov_x\": " << SceneNumber(scene.fov_x_rad) << ",\n"
+      << "    \"camera\": {\"eye\": " << Tuple(camera.eye) << ", \"target\": " << Tuple(camera.target)
+      << ", \"up\": " << Tuple(camera.up) << "},\n"
+      << "    \"backlight\": {\"distance\": " << SceneNumber(scene.backlight_distance_m)
+      << ", \"half_size\": " << SceneNumber(scene.backlight_half_size_m) << "},\n";
+  if (scene.slab) {
+    const RoughSlab& slab = *scene.slab;
+    out << "    \"slab\": {\"eta\": " << SceneNumber(slab.eta) << ", \"thickness\": " << SceneNumber(slab.thickness_m)
+        << ", \"distribution\": \"" << (slab.distribution == "beckmann" ? "BECKMANN" : "GGX") << "\", \"top_alpha\": \""
+        << textures.top_alpha << "\", \"bottom_alpha\": \"" << textures.bottom_alpha << "\"},\n";
+  } else {
+    out << "    \"slab\": None,\n";
+  }
+  if (scene.layer) {
+    const ScatteringLayer& layer = *scene.layer;
+    out << "    \"layer\": {\"tau\": \"" << textures.tau << "\", \"g\": " << SceneNumber(layer.g)
+        << ", \"albedo\": " << SceneNumber(layer.albedo) << ", \"thickness\": " << SceneNumber(layer.thickness_m)
+        << ", \"glass_eta\": " << SceneNumber(layer.glass_eta)
+        << ", \"glass_thickness\": " << SceneNumber(layer.glass_thickness_m) << "},\n";
+  } else {
+    out << "    \"layer\": None,\n";
+  }
+  out << "}\n" << kBuilder;
+  return out.str();
+}
+
+Status WriteBlenderScene(const RenderScene& scene, const std::string& dir, const Provenance& provenance) {
+  SceneTextures textures;
+  THINSLAB_RETURN_IF_ERROR(WriteSceneTextures(scene, dir, provenance, &textures));
+  return WriteFileAtomically(JoinPath(dir, "scene.py"), BlenderScript(scene, textures));
+}
+
+}  // namespace thinslab
