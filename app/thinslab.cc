@@ -54,6 +54,8 @@ const std::vector<Command>& Commands() {
       {"predict", thinslab::RunPredict, "what a fit (tau, phase, dmf) predicts for light states it was not fitted to",
        nullptr},
       {"export", thinslab::RunExport, "a fit as a Mitsuba 3, pbrt-v4 or Blender scene", thinslab::ExportSubcommands},
+      {"preview", thinslab::RunPreviewFit, "a fit in a canonical scene (checkerboard, window pane), with its own models",
+       nullptr},
       {"demo", thinslab::RunDemo, "simulate a shadow-map capture, fit tau, report accuracy", nullptr},
       {"synth", thinslab::RunSynth, "synthesize contamination layers from measured prototypes", thinslab::SynthSubcommands},
       {"bench", thinslab::RunBench, "speed against accuracy of the fit knobs", thinslab::BenchSubcommands},

@@ -17,6 +17,15 @@ namespace {
 
 constexpr double kDefaultSlabThicknessM = 1e-3;
 constexpr double kDefaultBacklightDistanceM = 0.02;
+constexpr double kNoNumber = -1e300;
+
+// The number at JSON pointer `pointer`, or `fallback` where the path is absent or holds another
+// type (a summary edited by hand must not throw).
+double NumberAt(const nlohmann::json& j, const std::string& pointer, double fallback) {
+  const nlohmann::json::json_pointer path(pointer);
+  if (!j.contains(path) || !j.at(path).is_number()) return fallback;
+  return j.at(path).get<double>();
+}
 
 std::string Fixed(double value, int digits) {
   std::ostringstream s;
@@ -82,7 +91,7 @@ Status ReadSlab(const std::string& fit_dir, const ExportOptions& options, Render
   scene->grid = {maps.width(), maps.height(), Eigen::Vector2d(grid_min[0], grid_min[1]), pitch[0]};
   RoughSlab slab;
   slab.eta = eta[0];
-  const double fit_thickness_m = summary.value("glass_thickness_m", 0.0);
+  const double fit_thickness_m = NumberAt(summary, "/glass_thickness_m", 0.0);
   if (options.slab_thickness_mm >= 0) {
     slab.thickness_m = options.slab_thickness_mm * 1e-3;
   } else if (fit_thickness_m > 0) {
@@ -130,13 +139,8 @@ Status ReadSlab(const std::string& fit_dir, const ExportOptions& options, Render
 
   double backlight_m = options.backlight_distance_mm * 1e-3;
   if (backlight_m < 0) {
-    const nlohmann::json translation = summary.value("monitor", nlohmann::json::object())
-                                           .value("sample_from_monitor", nlohmann::json::object())
-                                           .value("translation_m", nlohmann::json());
-    backlight_m = translation.is_array() && translation.size() == 3 && translation[2].is_number() &&
-                          translation[2].get<double>() < 0
-                      ? -translation[2].get<double>()
-                      : kDefaultBacklightDistanceM;
+    const double monitor_z = NumberAt(summary, "/monitor/sample_from_monitor/translation_m/2", 0.0);
+    backlight_m = monitor_z < 0 ? -monitor_z : kDefaultBacklightDistanceM;
   }
   PlaceBacklight(backlight_m, scene);
   PlaceCamera(maps, options, scene);
@@ -161,12 +165,11 @@ Status ReadTauLayer(const std::string& fit_dir, const ExportOptions& options, Re
 
   nlohmann::json summary;
   THINSLAB_RETURN_IF_ERROR(ReadJsonObjectFile(summary_file, "a `thinslab fit tau` output", &summary));
-  const nlohmann::json fit_layer = summary.value("layer", nlohmann::json::object());
-  if (!fit_layer.value("g", nlohmann::json()).is_number() || !fit_layer.value("albedo", nlohmann::json()).is_number()) {
+  layer.g = NumberAt(summary, "/layer/g", kNoNumber);
+  layer.albedo = NumberAt(summary, "/layer/albedo", kNoNumber);
+  if (layer.g == kNoNumber || layer.albedo == kNoNumber) {
     return Status::Error(summary_file + ": layer.g and layer.albedo are missing (give --g and --albedo)");
   }
-  layer.g = fit_layer["g"].get<double>();
-  layer.albedo = fit_layer["albedo"].get<double>();
   std::string source = summary_file + " (the fit's layer model)";
   if (!options.phase_dir.empty()) {
     PhaseLayerChoice choice;
@@ -278,7 +281,16 @@ Status SceneFromFit(const std::string& fit_dir, const ExportOptions& options, Re
     layer.thickness_m = options.layer_thickness_mm * 1e-3;
     layer.glass_eta = options.glass_eta;
     layer.glass_thickness_m = options.glass_thickness_mm * 1e-3;
-    for (float& tau : layer.tau.data()) tau = std::max(tau, 0.0f);
+    for (int y = 0; y < layer.tau.height(); ++y) {
+      for (int x = 0; x < layer.tau.width(); ++x) {
+        float& tau = layer.tau.at(x, y);
+        if (!std::isfinite(tau)) {
+          return Status::Error(fit_dir + ": tau is not finite at map pixel (" + std::to_string(x) + ", " +
+                               std::to_string(y) + ")");
+        }
+        tau = std::max(tau, 0.0f);
+      }
+    }
   }
   return Status::Ok();
 }

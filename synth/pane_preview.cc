@@ -29,11 +29,6 @@ double Percentile(std::vector<float> v, double q) {
   return v[k];
 }
 
-double SrgbEncode(double x) {
-  x = Clamp(x, 0.0, 1.0);
-  return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1 / 2.4) - 0.055;
-}
-
 // Box-filters the layer by an integer factor: tau averaged, g/albedo/n2 averaged with the
 // coverage weights 1 - e^{-tau} (as the synthesis blends them).
 Image DownsampleLayer(const Image& layer, int max_size) {
@@ -212,26 +207,9 @@ Status WritePanePreview(const std::string& png_path, const Image& layer, const I
     // White at the 99th percentile of the rendering, so neither bright specks (night, side
     // light) nor the sky (daylight) saturate everything.
     const double white = std::max(1e-12, Percentile(lit.data(), 0.99));
-    const int header = 28;
-    cv::Mat tile(lit.height() + header, lit.width(), CV_8UC3, cv::Scalar(32, 32, 32));
-    for (int y = 0; y < lit.height(); ++y) {
-      for (int x = 0; x < lit.width(); ++x) {
-        const auto v = static_cast<uint8_t>(std::lround(255 * SrgbEncode(lit.at(x, y) / white)));
-        tile.at<cv::Vec3b>(y + header, x) = cv::Vec3b(v, v, v);
-      }
-    }
-    cv::putText(tile, scene.name, cv::Point(6, 19), cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(255, 255, 255), 1,
-                cv::LINE_AA);
-    tiles.push_back(tile);
+    tiles.push_back(LabelledRadianceTile(lit, 0, white, scene.name));
   }
-  cv::Mat sheet;
-  std::vector<cv::Mat> with_gaps;
-  for (size_t k = 0; k < tiles.size(); ++k) {
-    if (k) with_gaps.push_back(cv::Mat(tiles[k].rows, 6, CV_8UC3, cv::Scalar(255, 255, 255)));
-    with_gaps.push_back(tiles[k]);
-  }
-  cv::hconcat(with_gaps, sheet);
-  return WritePngAtomically(png_path, sheet);
+  return WritePngAtomically(png_path, SideBySide(tiles));
 }
 
 Status ReadBackgroundImage(const std::string& path, Image* background) {

@@ -715,6 +715,15 @@ std::vector<Case> Cases() {
       C("export_out_inside_fit", "shadow_fit", none, "export pbrt {in}/fit/tau {in}/fit/tau/scene",
         {"{in}/fit/tau"}),
 
+      // ---- thinslab preview ----
+      C("preview_not_a_fit", "shadow", none, "preview {in} {out}", {"{in}", "holds no maps.exr"}),
+      C("preview_n2_above_three", "layer", none, "preview {layer} {out} --n2 9", {"--n2"}),
+      C("preview_panel_scale_negative", "shadow_fit", none, "preview {in}/fit/tau {out} --panel-scale -1",
+        {"--panel-scale"}),
+      C("preview_tau_truncated", "shadow_fit", Truncate("{in}/fit/tau/tau.exr", 200), "preview {in}/fit/tau {out}",
+        {"tau.exr"}),
+      C("preview_out_inside_fit", "shadow_fit", none, "preview {in}/fit/tau {in}/fit/tau/preview", {"{in}/fit/tau"}),
+
       // ---- thinslab calib camera ----
       C("calib_camera_no_images", "", none, "calib camera --out {out}", {"IMAGES|--images"}),
       C("calib_camera_images_folder_empty", "", MakeDir("{case}/empty"),
