@@ -24,6 +24,8 @@ int RunInfo(int argc, char** argv);
 int RunCheck(int argc, char** argv);  // app/check_command.cc
 int RunExport(int argc, char** argv);  // app/export_command.cc
 int RunPreviewFit(int argc, char** argv);  // app/preview_command.cc
+int RunRoundTrip(int argc, char** argv);  // app/roundtrip_command.cc
+int RunBatch(int argc, char** argv);  // app/batch_command.cc
 // `thinslab check`'s exit status for the verdict "retake" (and `thinslab acquire`'s check option).
 inline constexpr int kCheckRetakeExitCode = 3;
 int RunSim(int argc, char** argv);

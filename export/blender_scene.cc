@@ -35,6 +35,9 @@ def parse_args():
     parser.add_argument("--render", help="render the camera's image to this PNG (or .exr) file")
     parser.add_argument("--samples", type=int, default=64, help="Cycles samples per pixel")
     parser.add_argument("--resolution-percent", type=int, default=100, help="image size in percent")
+    parser.add_argument("--passes", metavar="PREFIX",
+                        help="the round trip's renders (32-bit EXR): PREFIX_reference.exr without the layer, "
+                             "PREFIX_shadow_1.exr and PREFIX_shadow_2.exr with it (two independent seeds)")
     return parser.parse_args(argv)
 
 
@@ -105,7 +108,7 @@ def glass(name, eta, distribution, alpha_texture):
     return material
 
 
-def layer_volume(layer):
+def layer_volume(layer, thickness):
     material, nodes, links = new_material("layer")
     output = nodes.new("ShaderNodeOutputMaterial")
     coordinates = nodes.new("ShaderNodeTexCoord")
@@ -120,8 +123,7 @@ def layer_volume(layer):
     scatter.inputs["Anisotropy"].default_value = layer["g"]
     absorb = nodes.new("ShaderNodeVolumeAbsorption")
     absorb.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)  # sigma_a = density (1 - colour).
-    for shader, per_metre in ((scatter, layer["albedo"] / layer["thickness"]),
-                              (absorb, (1.0 - layer["albedo"]) / layer["thickness"])):
+    for shader, per_metre in ((scatter, layer["albedo"] / thickness), (absorb, (1.0 - layer["albedo"]) / thickness)):
         density = nodes.new("ShaderNodeMath")
         density.operation = "MULTIPLY"
         density.inputs[1].default_value = per_metre
@@ -143,6 +145,36 @@ def emission(name):
     return material
 
 
+def diffuse(name, albedo):
+    material, nodes, links = new_material(name)
+    output = nodes.new("ShaderNodeOutputMaterial")
+    bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+    bsdf.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
+    links.new(bsdf.outputs["BSDF"], output.inputs["Surface"])
+    return material
+
+
+def orient(obj, z_axis, position):
+    """Places obj at position with its local +z along z_axis (lights shine along their -z)."""
+    z = Vector(z_axis).normalized()
+    helper = Vector((1.0, 0.0, 0.0)) if abs(z.x) < 0.9 else Vector((0.0, 1.0, 0.0))
+    x = (helper - helper.dot(z) * z).normalized()
+    y = z.cross(x)
+    obj.matrix_world = Matrix([[x.x, y.x, z.x, position[0]], [x.y, y.y, z.y, position[1]],
+                               [x.z, y.z, z.z, position[2]], [0, 0, 0, 1]])
+
+
+def shadow_rig(rig):
+    """The capture's shadow-map rig: a Lambertian board below the layer, a collimated light."""
+    half = 1.0
+    rectangle("board", (-half, -half), (half, half), -rig["board_distance"], False).data.materials.append(
+        diffuse("board", rig["board_albedo"]))
+    sun = bpy.data.lights.new("projector", "SUN")
+    sun.energy = 1.0  # Irradiance on a surface facing the light; the round trip uses ratios.
+    sun.angle = 0.0   # Collimated.
+    orient(link(bpy.data.objects.new("projector", sun)), [-c for c in rig["light_propagation"]], (0.0, 0.0, 1.0))
+
+
 def build():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -152,6 +184,7 @@ def build():
         setattr(scene.cycles, bounces, 64)
     scene.cycles.volume_bounces = 16
     scene.cycles.use_denoising = False  # Debian's Blender has no OpenImageDenoise.
+    scene.cycles.use_adaptive_sampling = False  # Every pixel gets --samples: the round trip's noise estimate.
     scene.view_settings.view_transform = "Standard"
     scene.render.resolution_x, scene.render.resolution_y = SCENE["image"]
     world = bpy.data.worlds.new("black")
@@ -168,21 +201,44 @@ def build():
         rectangle("slab_monitor_side", lo, hi, -slab["thickness"], True).data.materials.append(
             glass("slab_monitor_side", slab["eta"], slab["distribution"], slab["top_alpha"]))
     layer = SCENE["layer"]
-    if layer:
-        box("layer", lo, hi, 0.0, layer["thickness"]).data.materials.append(layer_volume(layer))
+    rig = SCENE["shadow_rig"]
+    if layer and rig:
+        # On the pane's board side and seen by light only: the camera views the board directly.
+        thickness = min(layer["thickness"], 0.5 * rig["board_distance"])
+        volume = box("layer", lo, hi, -thickness, 0.0)
+        volume.data.materials.append(layer_volume(layer, thickness))
+        volume.visible_camera = False
+    elif layer:
+        box("layer", lo, hi, 0.0, layer["thickness"]).data.materials.append(layer_volume(layer, layer["thickness"]))
         pane = glass("pane", layer["glass_eta"], "SHARP", None)
         top = -1e-6  # 1 um below the layer: coincident surfaces would intersect ambiguously.
         rectangle("pane_camera_side", lo, hi, top, False).data.materials.append(pane)
         rectangle("pane_monitor_side", lo, hi, top - layer["glass_thickness"], True).data.materials.append(pane)
-    light = SCENE["backlight"]
-    centre = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
-    half = light["half_size"]
-    rectangle("backlight", (centre[0] - half, centre[1] - half), (centre[0] + half, centre[1] + half),
-              -light["distance"], False).data.materials.append(emission("backlight"))
+    if rig:
+        shadow_rig(rig)
+        scene.cycles.pixel_filter_type = "BOX"  # A camera pixel integrates its own square.
+        scene.cycles.filter_width = 1.0
+    else:
+        light = SCENE["backlight"]
+        centre = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
+        half = light["half_size"]
+        rectangle("backlight", (centre[0] - half, centre[1] - half), (centre[0] + half, centre[1] + half),
+                  -light["distance"], False).data.materials.append(emission("backlight"))
 
     camera_data = bpy.data.cameras.new("camera")
     camera_data.sensor_fit = "HORIZONTAL"
-    camera_data.angle_x = SCENE["fov_x"]
+    intrinsics = SCENE["intrinsics"]
+    if intrinsics:
+        # OpenCV's pinhole: fx sets the horizontal angle; Blender shifts in units of the image's
+        # larger side, and its pixel centres sit at half-integers (OpenCV's at integers).
+        width, height = SCENE["image"]
+        camera_data.sensor_width = 36.0
+        camera_data.lens = intrinsics["fx"] * camera_data.sensor_width / width
+        scene.render.pixel_aspect_x, scene.render.pixel_aspect_y = 1.0, intrinsics["fx"] / intrinsics["fy"]
+        camera_data.shift_x = ((width - 1) / 2 - intrinsics["cx"]) / max(width, height)
+        camera_data.shift_y = (intrinsics["cy"] - (height - 1) / 2) / max(width, height)
+    else:
+        camera_data.angle_x = SCENE["fov_x"]
     camera_data.clip_start = 1e-4
     camera_data.clip_end = 100.0
     camera = link(bpy.data.objects.new("camera", camera_data))
@@ -204,6 +260,16 @@ def main():
     print("thinslab scene:", ", ".join(sorted(obj.name for obj in scene.objects)))
     if args.save:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.save))
+    if args.passes:
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        scene.render.image_settings.color_depth = "32"
+        for name, seed, with_layer in (("reference", 0, False), ("shadow_1", 1, True), ("shadow_2", 2, True)):
+            for obj in scene.objects:
+                if obj.name == "layer":
+                    obj.hide_render = not with_layer
+            scene.cycles.seed = seed
+            scene.render.filepath = os.path.abspath(args.passes + "_" + name + ".exr")
+            bpy.ops.render.render(write_still=True)
     if args.render:
         path = os.path.abspath(args.render)
         scene.render.image_settings.file_format = "OPEN_EXR" if path.endswith(".exr") else "PNG"
@@ -234,6 +300,21 @@ std::string BlenderScript(const RenderScene& scene, const SceneTextures& texture
       << ", \"up\": " << Tuple(camera.up) << "},\n"
       << "    \"backlight\": {\"distance\": " << SceneNumber(scene.backlight_distance_m)
       << ", \"half_size\": " << SceneNumber(scene.backlight_half_size_m) << "},\n";
+  if (scene.intrinsics) {
+    const PinholeIntrinsics& k = *scene.intrinsics;
+    out << "    \"intrinsics\": {\"fx\": " << SceneNumber(k.fx) << ", \"fy\": " << SceneNumber(k.fy)
+        << ", \"cx\": " << SceneNumber(k.cx) << ", \"cy\": " << SceneNumber(k.cy) << "},\n";
+  } else {
+    out << "    \"intrinsics\": None,\n";
+  }
+  if (scene.shadow_rig) {
+    const ShadowRig& rig = *scene.shadow_rig;
+    out << "    \"shadow_rig\": {\"board_distance\": " << SceneNumber(rig.board_distance_m)
+        << ", \"board_albedo\": " << SceneNumber(rig.board_albedo)
+        << ", \"light_propagation\": " << Tuple(rig.light_propagation) << "},\n";
+  } else {
+    out << "    \"shadow_rig\": None,\n";
+  }
   if (scene.slab) {
     const RoughSlab& slab = *scene.slab;
     out << "    \"slab\": {\"eta\": " << SceneNumber(slab.eta) << ", \"thickness\": " << SceneNumber(slab.thickness_m)

@@ -48,6 +48,24 @@ struct ScatteringLayer {
   double glass_eta = 1.5, glass_thickness_m = 3e-3;
 };
 
+// The capture's own shadow-map rig (Gu et al. 2007, Fig. 9a) for the render round trip
+// (export/round_trip.h), in place of the backlight: a Lambertian board at z = -board_distance_m
+// lit through the layer by a collimated source (the projector). The camera sees the board
+// directly, not through the layer, as the simulated rig and `fit tau` model it; the pane's faces
+// are left out (a parallel pane shifts collimated light without turning it, and its Fresnel loss
+// is the same with and without the layer, so the shadow-to-reference ratio keeps it out).
+struct ShadowRig {
+  double board_distance_m = 0;
+  double board_albedo = 0.8;
+  Eigen::Vector3d light_propagation = Eigen::Vector3d(0, 0, -1);  // Unit: the direction the light travels.
+};
+
+// Pinhole intrinsics of the rig camera in pixels of image_width x image_height (OpenCV: pixel
+// centres at integer coordinates, y down).
+struct PinholeIntrinsics {
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+};
+
 struct RenderScene {
   SceneGrid grid;
   std::optional<RoughSlab> slab;
@@ -58,10 +76,15 @@ struct RenderScene {
   Rigid3d cam_from_sample;
   int image_width = 640, image_height = 480;
   double fov_x_rad = 0;
+  // The rig camera's intrinsics (the round trip renders the capture's pixels); empty: fov_x_rad
+  // frames the sample with the image's centre on the optical axis.
+  std::optional<PinholeIntrinsics> intrinsics;
   // A uniform emitter of radiance 1 in the plane z = -backlight_distance_m, facing +z, covering
-  // the sample region and its surroundings (the monitor or board of the rig).
+  // the sample region and its surroundings (the monitor or board of the rig); not drawn with
+  // shadow_rig.
   double backlight_distance_m = 0.04;
   double backlight_half_size_m = 0.1;
+  std::optional<ShadowRig> shadow_rig;
   std::string source;              // The fit folder.
   std::vector<std::string> notes;  // What the export approximated (written beside the scene).
 };

@@ -111,7 +111,8 @@ std::vector<ShadowPredictionRegion> ImageShadowInCamera(const Image& tau_map, co
       sigma_tau.data()[k] = static_cast<float>(sigma_sum / n2);
     }
   }
-  *camera_image = Image(w, h, {"predicted", "predicted_plain", "measured", "variance", "valid"});
+  *camera_image =
+      Image(w, h, {"predicted", "predicted_plain", "measured", "variance", "valid", "clean", "tau", "sigma_tau"});
   for (int v = 0; v < h; ++v) {
     for (int u = 0; u < w; ++u) {
       const size_t k = static_cast<size_t>(v) * w + u;
@@ -120,6 +121,9 @@ std::vector<ShadowPredictionRegion> ImageShadowInCamera(const Image& tau_map, co
       camera_image->at(u, v, 2) = measured.data()[k];
       camera_image->at(u, v, 3) = variance.data()[k];
       camera_image->at(u, v, 4) = valid[k];
+      camera_image->at(u, v, 5) = valid[k] ? data.camera_reference.data()[k] : 0.0f;
+      camera_image->at(u, v, 6) = tau.data()[k];
+      camera_image->at(u, v, 7) = sigma_tau.data()[k];
     }
   }
   return CompareShadowPrediction(predicted, plain, measured, variance, tau, sigma_tau, valid);
@@ -186,9 +190,10 @@ LobeCameraError ImageLobeInCamera(const LaserLobeImages& images, const LobePredi
 
 }  // namespace
 
-Status PredictShadowFromTau(const PredictRun& run, const Session& session, StagedDirectory* out) {
-  const std::string tau_path = JoinPath(run.fit_dir, "tau.exr"), summary_path = JoinPath(run.fit_dir, "summary.json");
-  Image tau_map;
+Status PredictShadow(const std::string& session_dir, const Session& session, const std::string& fit_dir,
+                     const SessionCalibrationOptions& calibration, ShadowPrediction* prediction) {
+  const std::string tau_path = JoinPath(fit_dir, "tau.exr"), summary_path = JoinPath(fit_dir, "summary.json");
+  Image& tau_map = prediction->tau_map;
   THINSLAB_RETURN_IF_ERROR(ReadExr(tau_path, &tau_map));
   for (const char* channel : {"tau", "tau_eq7", "status", "sigma_tau"}) {
     if (tau_map.ChannelIndex(channel) < 0) return Status::Error(tau_path + ": channel '" + channel + "' missing");
@@ -198,7 +203,7 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
   if (!fit_summary.contains("layer") || !fit_summary["layer"].is_object()) {
     return Status::Error(summary_path + ": layer: missing (a `thinslab fit tau` summary holds the layer it was fitted with)");
   }
-  TauFitOptions layer;
+  TauFitOptions& layer = prediction->layer;
   const nlohmann::json& layer_json = fit_summary["layer"];
   THINSLAB_RETURN_IF_ERROR(NumberField(layer_json, summary_path + ": layer", "albedo", &layer.layer_albedo));
   THINSLAB_RETURN_IF_ERROR(NumberField(layer_json, summary_path + ": layer", "g", &layer.layer_g));
@@ -215,14 +220,14 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
   if (!layer.Check(&error)) return Status::Error(summary_path + ": " + error);
 
   ShadowMapPreparationOptions preparation;
-  preparation.calibration = run.calibration;
+  preparation.calibration = calibration;
   preparation.keep_camera_frames = true;
-  RectifiedShadowMaps data;
-  THINSLAB_RETURN_IF_ERROR(PrepareShadowMaps(run.session_dir, session, preparation, &data));
+  RectifiedShadowMaps& data = prediction->data;
+  THINSLAB_RETURN_IF_ERROR(PrepareShadowMaps(session_dir, session, preparation, &data));
   Eigen::Vector2d fit_min;
   double fit_pitch = 0;
   THINSLAB_RETURN_IF_ERROR(TauGrid(tau_map, tau_path, &fit_min, &fit_pitch));
-  const std::string manifest = JoinPath(run.session_dir, kSessionManifestName);
+  const std::string manifest = JoinPath(session_dir, kSessionManifestName);
   if (tau_map.width() != data.shadow.width() || tau_map.height() != data.shadow.height() ||
       (fit_min - data.region_min_m).norm() > 1e-9 || std::abs(fit_pitch - data.pixel_pitch_m) > 1e-12) {
     return Status::Error(manifest + ": rig.sample: the capture's grid (region_min_m, region_max_m, pixel_pitch_m) differs "
@@ -232,7 +237,7 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
     return Status::Error(manifest + ": frames: no usable 'reference' frames; predicting a shadow needs the clean board "
                          "signal I_clean at the capture's board distance");
   }
-  const bool validation = data.num_validation_frames > 0;
+  const bool validation = prediction->validation = data.num_validation_frames > 0;
   // The prediction inherits the reference's noise (pred = m I_clean; m ~ measured / I_clean).
   Image prediction_variance(data.reference.width(), data.reference.height());
   const Image& measured = validation ? data.validation_shadow : data.shadow;
@@ -240,17 +245,29 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
     const double r = data.reference.data()[i];
     if (r > 0) prediction_variance.data()[i] = static_cast<float>(std::pow(measured.data()[i] / r, 2) * data.reference_variance.data()[i]);
   }
-  Image shadow;
-  const std::vector<ShadowPredictionRegion> regions =
+  Image& shadow = prediction->board;
+  prediction->regions =
       CompareShadowWithMaps(layer, tau_map, data, data.reference, prediction_variance, !validation, &shadow);
   shadow.attributes()["units"] = "DN/us on the board grid of docs/format.md 9.1, black level and darks removed";
-  THINSLAB_RETURN_IF_ERROR(
-      WriteMapExr(JoinPath(out->path(), "shadow.exr"), shadow, {"predicted", {"valid"}}, PredictProvenance(run)));
-  Image camera_shadow;
-  const std::vector<ShadowPredictionRegion> camera_regions = ImageShadowInCamera(tau_map, data, shadow, &camera_shadow);
+  Image& camera_shadow = prediction->camera;
+  prediction->camera_regions = ImageShadowInCamera(tau_map, data, shadow, &camera_shadow);
   camera_shadow.attributes() = shadow.attributes();
   camera_shadow.attributes()["units"] = "DN/us in the capture's camera pixels, black level and darks removed";
-  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out->path(), "shadow_camera.exr"), camera_shadow,
+  return Status::Ok();
+}
+
+Status PredictShadowFromTau(const PredictRun& run, const Session& session, StagedDirectory* out) {
+  ShadowPrediction prediction;
+  THINSLAB_RETURN_IF_ERROR(PredictShadow(run.session_dir, session, run.fit_dir, run.calibration, &prediction));
+  const RectifiedShadowMaps& data = prediction.data;
+  const TauFitOptions& layer = prediction.layer;
+  const bool validation = prediction.validation;
+  const std::vector<ShadowPredictionRegion>& regions = prediction.regions;
+  const std::vector<ShadowPredictionRegion>& camera_regions = prediction.camera_regions;
+  const std::string tau_path = JoinPath(run.fit_dir, "tau.exr");
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out->path(), "shadow.exr"), prediction.board, {"predicted", {"valid"}},
+                                       PredictProvenance(run)));
+  THINSLAB_RETURN_IF_ERROR(WriteMapExr(JoinPath(out->path(), "shadow_camera.exr"), prediction.camera,
                                        {"predicted", {"valid"}}, PredictProvenance(run)));
 
   nlohmann::json j =

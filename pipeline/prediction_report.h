@@ -41,6 +41,23 @@ struct PredictRun {
   std::string options_ini;  // PredictCaptureRun::options_ini.
 };
 Status PredictShadowFromTau(const PredictRun& run, const Session& session, StagedDirectory* out);
+
+// The shadow a `fit tau` output (FIT/tau.exr and summary.json) predicts for the shadow-map
+// capture SESSION: what PredictShadowFromTau writes, for callers that compare it with more (the
+// render round trip, export/round_trip.h).
+struct ShadowPrediction {
+  RectifiedShadowMaps data;  // The capture's frames as `fit tau` rectifies them, with the camera's.
+  TauFitOptions layer;       // The layer the map was fitted with (summary.json).
+  Image tau_map;             // FIT/tau.exr.
+  bool validation = false;   // `measured` holds the capture's validation frames (else its fitted ones).
+  Image board;               // shadow.exr's channels, on the board grid.
+  // shadow_camera.exr's channels in the camera's pixels: predicted, predicted_plain, measured,
+  // variance, valid, clean (the pixel's own reference signal), tau, sigma_tau (footprint means).
+  Image camera;
+  std::vector<ShadowPredictionRegion> regions, camera_regions;
+};
+Status PredictShadow(const std::string& session_dir, const Session& session, const std::string& fit_dir,
+                     const SessionCalibrationOptions& calibration, ShadowPrediction* prediction);
 Status PredictLobeFromPhase(const PredictRun& run, const Session& session, StagedDirectory* out);
 
 }  // namespace thinslab

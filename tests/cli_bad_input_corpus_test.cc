@@ -724,6 +724,16 @@ std::vector<Case> Cases() {
         {"tau.exr"}),
       C("preview_out_inside_fit", "shadow_fit", none, "preview {in}/fit/tau {in}/fit/tau/preview", {"{in}/fit/tau"}),
 
+      // ---- thinslab roundtrip ----
+      C("roundtrip_laser_capture", "laser", none, "roundtrip {in} --out {out}", {"session.json", "shadow-map"}),
+      C("roundtrip_without_fit", "shadow", none, "roundtrip {in} --out {out}", {"fit/tau", "fit tau"}),
+      C("roundtrip_tau_truncated", "shadow_fit", Truncate("{in}/fit/tau/tau.exr", 200), "roundtrip {in} --out {out}",
+        {"tau.exr"}),
+      C("roundtrip_samples_zero", "shadow_fit", none, "roundtrip {in} --out {out} --samples 0", {"--samples"}),
+      C("roundtrip_blender_missing", "shadow_fit", none, "roundtrip {in} --out {out} --blender {case}/no_blender",
+        {"--blender", "{case}/no_blender"}),
+      C("roundtrip_out_inside_fit", "shadow_fit", none, "roundtrip {in} --out {in}/fit/tau/rt", {"{in}/fit/tau"}),
+
       // ---- thinslab calib camera ----
       C("calib_camera_no_images", "", none, "calib camera --out {out}", {"IMAGES|--images"}),
       C("calib_camera_images_folder_empty", "", MakeDir("{case}/empty"),

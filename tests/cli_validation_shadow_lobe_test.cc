@@ -16,26 +16,17 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "thinslab/core/exr_io.h"
-#include "thinslab/core/file.h"
 #include "tests/testing/json_file.h"
 #include "tests/testing/run_ok.h"
 #include "tests/testing/temp_dir.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
 
 namespace thinslab {
 namespace {
 
 constexpr const char* kSmallShadow = " --camera-width-px 320 --camera-height-px 240 --photons 20000 --frames 2";
 constexpr const char* kSmallLaser = " --camera-width-px 400 --camera-height-px 300";
-
-const nlohmann::json& Region(const nlohmann::json& regions, const std::string& name) {
-  for (const nlohmann::json& r : regions) {
-    if (r["region"] == name) return r;
-  }
-  ADD_FAILURE() << "no region " << name << " in " << regions.dump();
-  static const nlohmann::json none;
-  return none;
-}
 
 // What the capture's noise and the map's sigma_tau together allow.
 double Expected(const nlohmann::json& region) {
@@ -186,7 +177,8 @@ TEST(CliValidationShadowLobe, LobeFitsPredictValidationBracketsAndOtherBoardDist
   const nlohmann::json wrong_summary = ReadJsonFile(dir / "predict_wrong/summary.json");
   const double wrong_error = wrong_summary["lobe"]["bands"].back()["relative_rms"].get<double>();
   const double wrong_camera = wrong_summary["lobe_camera"]["relative_rms"].get<double>();
-  std::printf("predict at 30 mm with g 0.1 lower: relative RMS %.4f, in camera pixels %.4f\n", wrong_error, wrong_camera);
+  std::printf("predict at 30 mm with g 0.1 lower: relative RMS %.4f, in camera pixels %.4f\n", wrong_error,
+              wrong_camera);
   EXPECT_GT(wrong_error, 5 * error);
   EXPECT_GT(wrong_camera, 5 * camera["relative_rms"].get<double>());
 }

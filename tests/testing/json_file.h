@@ -18,4 +18,15 @@ inline nlohmann::json ReadJsonFile(const std::string& path) {
   return nlohmann::json::parse(text, nullptr, false);
 }
 
+// The element of a summary's `regions` array whose "region" is `name`; a test failure and a null
+// value when there is none.
+inline const nlohmann::json& Region(const nlohmann::json& regions, const std::string& name) {
+  for (const nlohmann::json& r : regions) {
+    if (r["region"] == name) return r;
+  }
+  ADD_FAILURE() << "no region " << name << " in " << regions.dump();
+  static const nlohmann::json none;
+  return none;
+}
+
 }  // namespace thinslab

@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: Apache-2.0
+// `thinslab roundtrip CAPTURE` (export/round_trip.h runs it; this file parses its options): the
+// fitted material rendered by Blender under the capture's own rig, against the capture's frames
+// and `thinslab predict` (issue #27 item 3).
+#include <iostream>
+
+#include "thinslab/app/calibration_options.h"
+#include "thinslab/app/capture_options.h"
+#include "thinslab/app/commands.h"
+#include "thinslab/app/option_parser.h"
+#include "thinslab/export/round_trip.h"
+
+namespace thinslab {
+
+int RunRoundTrip(int argc, char** argv) {
+  RoundTripRun run;
+  OptionParser parser("roundtrip");
+  parser.AddPositional("CAPTURE", &run.session_dir, "shadow-map capture whose rig the render reproduces");
+  parser.AddString("fit", &run.fit_dir, "output folder of `thinslab fit tau` (default CAPTURE/fit/tau)");
+  parser.AddString("out", &run.out_dir, "output folder (default CAPTURE/fit/roundtrip)");
+  parser.AddString("blender", &run.blender, "the Blender executable (a name on PATH or a path)");
+  parser.AddInt("samples", &run.samples, "Cycles samples per pixel of each of the three renders");
+  parser.AddInt("downsample", &run.downsample, "camera pixels per rendered pixel along each axis");
+  AddCalibrationOptions(&parser, &run.calibration);
+  AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
+  Status status = parser.Parse(argc, argv);
+  if (parser.help_requested()) {
+    std::cout << parser.Usage();
+    return 0;
+  }
+  run.options_ini = parser.ToIni();
+  if (status.ok()) status = RenderRoundTrip(run, std::cout);
+  if (!status.ok()) {
+    std::cerr << "error: " << status.message() << "\n";
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace thinslab

@@ -1,0 +1,337 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "thinslab/export/round_trip.h"
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <vector>
+
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/false_color.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/png_io.h"
+#include "thinslab/core/process.h"
+#include "thinslab/core/provenance.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/export/blender_scene.h"
+#include "thinslab/export/scene_from_fit.h"
+#include "thinslab/pipeline/capture_reading.h"
+#include "thinslab/pipeline/prediction_report.h"
+
+namespace thinslab {
+
+namespace {
+
+// The luminance of a Blender render (R, G and B are equal in the grey scene).
+Status ReadRender(const std::string& path, int width, int height, Image* out) {
+  Image render;
+  THINSLAB_RETURN_IF_ERROR(ReadExr(path, &render));
+  int r = 0, g = 0, b = 0;
+  THINSLAB_RETURN_IF_ERROR(RequireChannel(render, path, "R", &r));
+  THINSLAB_RETURN_IF_ERROR(RequireChannel(render, path, "G", &g));
+  THINSLAB_RETURN_IF_ERROR(RequireChannel(render, path, "B", &b));
+  if (render.width() != width || render.height() != height) {
+    return Status::Error(path + ": Blender rendered " + std::to_string(render.width()) + "x" +
+                         std::to_string(render.height()) + " px, the scene asks for " + std::to_string(width) + "x" +
+                         std::to_string(height));
+  }
+  *out = Image(width, height);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const double v = (render.at(x, y, r) + render.at(x, y, g) + render.at(x, y, b)) / 3;
+      if (!std::isfinite(v) || v < 0)
+        return Status::Error(path + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                             ") is not a finite radiance");
+      out->at(x, y) = static_cast<float>(v);
+    }
+  }
+  return Status::Ok();
+}
+
+// The capture's camera image averaged over n x n blocks: a block is valid when all its pixels are.
+struct BlockImages {
+  Image measured, clean, predicted, variance, tau, sigma_tau;
+  std::vector<uint8_t> valid;
+};
+BlockImages AverageBlocks(const Image& camera, int n, int width, int height) {
+  const int measured_c = camera.ChannelIndex("measured"), clean_c = camera.ChannelIndex("clean"),
+            predicted_c = camera.ChannelIndex("predicted"), variance_c = camera.ChannelIndex("variance"),
+            valid_c = camera.ChannelIndex("valid"), tau_c = camera.ChannelIndex("tau"),
+            sigma_c = camera.ChannelIndex("sigma_tau");
+  BlockImages b{Image(width, height),
+                Image(width, height),
+                Image(width, height),
+                Image(width, height),
+                Image(width, height),
+                Image(width, height),
+                std::vector<uint8_t>(static_cast<size_t>(width) * height, 0)};
+  const double n2 = static_cast<double>(n) * n;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      double m = 0, c = 0, p = 0, v = 0, t = 0, s = 0;
+      bool valid = true;
+      for (int dy = 0; dy < n && valid; ++dy) {
+        for (int dx = 0; dx < n && valid; ++dx) {
+          const int u = x * n + dx, w = y * n + dy;
+          valid = camera.at(u, w, valid_c) > 0;
+          m += camera.at(u, w, measured_c);
+          c += camera.at(u, w, clean_c);
+          p += camera.at(u, w, predicted_c);
+          v += camera.at(u, w, variance_c);
+          t += camera.at(u, w, tau_c);
+          s += camera.at(u, w, sigma_c);
+        }
+      }
+      if (!valid) continue;
+      b.valid[static_cast<size_t>(y) * width + x] = 1;
+      b.measured.at(x, y) = static_cast<float>(m / n2);
+      b.clean.at(x, y) = static_cast<float>(c / n2);
+      b.predicted.at(x, y) = static_cast<float>(p / n2);
+      b.variance.at(x, y) = static_cast<float>(v / (n2 * n2));  // Of a mean of n^2 (independent) pixels.
+      b.tau.at(x, y) = static_cast<float>(t / n2);
+      b.sigma_tau.at(x, y) = static_cast<float>(s / n2);
+    }
+  }
+  return b;
+}
+
+nlohmann::json RoundTripRegionsJson(const std::vector<ShadowPredictionRegion>& render_vs_capture,
+                                    const std::vector<ShadowPredictionRegion>& render_vs_predict) {
+  nlohmann::json regions = nlohmann::json::array();
+  for (size_t k = 0; k < render_vs_capture.size(); ++k) {
+    const ShadowPredictionRegion& r = render_vs_capture[k];
+    const ShadowPredictionRegion& p = render_vs_predict[k];
+    regions.push_back({{"region", r.name},
+                       {"tau_min", r.tau_min},
+                       {"tau_max", r.tau_max},
+                       {"pixels", r.pixels},
+                       {"render_vs_capture_relative_rms", r.relative_rms},
+                       {"predict_vs_capture_relative_rms", r.alternative_relative_rms},
+                       {"render_vs_predict_relative_rms", p.relative_rms},
+                       {"noise_relative_rms", r.noise_relative_rms},
+                       {"render_noise_relative_rms", p.noise_relative_rms},
+                       {"sigma_tau_relative_rms", r.sigma_tau_relative_rms}});
+  }
+  return regions;
+}
+
+std::string Fixed(double v, int digits = 4) {
+  if (v < 0) return "-";
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(digits);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+Status RoundTripRun::Check() const {
+  if (!(samples >= 1 && samples <= 65536)) return Status::Error("--samples: must be 1 to 65536");
+  if (!(downsample >= 1 && downsample <= 64)) return Status::Error("--downsample: must be 1 to 64");
+  if (blender.empty()) return Status::Error("--blender: empty");
+  return Status::Ok();
+}
+
+Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
+  THINSLAB_RETURN_IF_ERROR(run.Check());
+  if (run.session_dir.empty()) return Status::Error("thinslab roundtrip: CAPTURE is required");
+  Session session;
+  THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(run.session_dir, run.allow_incomplete_capture, &session));
+  const std::string manifest = JoinPath(run.session_dir, kSessionManifestName);
+  if (session.kind != "shadow_map") {
+    return Status::Error(manifest + ": kind \"" + session.kind +
+                         "\": the render round trip covers shadow-map captures and their `fit tau` (laser lobes "
+                         "and dot scans are not rendered yet, docs/export.md)");
+  }
+  const std::string fit_dir = run.fit_dir.empty() ? JoinPath(JoinPath(run.session_dir, "fit"), "tau") : run.fit_dir;
+  if (!FileExists(JoinPath(fit_dir, "tau.exr"))) {
+    return Status::Error(fit_dir +
+                         ": no tau.exr: the round trip renders a `thinslab fit tau` output (run it first or "
+                         "give its folder with --fit)");
+  }
+  const std::string out_dir =
+      run.out_dir.empty() ? JoinPath(JoinPath(run.session_dir, "fit"), "roundtrip") : run.out_dir;
+  StagedDirectory out(out_dir, "roundtrip", {{run.session_dir, {"fit"}}, {fit_dir, {}}});
+  THINSLAB_RETURN_IF_ERROR(out.Init());
+
+  // What thinslab's own model predicts in the capture's camera, with the capture's frames.
+  ShadowPrediction prediction;
+  THINSLAB_RETURN_IF_ERROR(PredictShadow(run.session_dir, session, fit_dir, run.calibration, &prediction));
+  const CameraInfo& camera = prediction.data.camera;
+  for (double k : camera.distortion) {
+    if (k != 0) {
+      return Status::Error(manifest + ": camera " + camera.id +
+                           " has lens distortion; Blender renders a pinhole camera, so the round trip needs "
+                           "undistorted frames and zero distortion coefficients");
+    }
+  }
+  const int n = run.downsample;
+  const int width = camera.width_px / n, height = camera.height_px / n;
+  if (width < 8 || height < 8) {
+    return Status::Error("--downsample " + std::to_string(n) + ": leaves " + std::to_string(width) + "x" +
+                         std::to_string(height) + " px of camera " + camera.id + "'s " +
+                         std::to_string(camera.width_px) + "x" + std::to_string(camera.height_px));
+  }
+
+  // The fitted layer under the capture's rig, seen by the capture's camera at 1/n resolution
+  // (an n x n block of camera pixels is one rendered pixel: centres map as (c + 0.5) / n - 0.5).
+  ExportOptions export_options;
+  RenderScene scene;
+  THINSLAB_RETURN_IF_ERROR(SceneFromFit(fit_dir, export_options, &scene));
+  if (!scene.layer) return Status::Error(fit_dir + ": not a scattering layer");
+  scene.layer->g = prediction.layer.layer_g;
+  scene.layer->albedo = prediction.layer.refine_scattering ? prediction.layer.layer_albedo : 0.0;
+  scene.cam_from_sample = camera.cam_from_sample;
+  scene.image_width = width;
+  scene.image_height = height;
+  scene.intrinsics = PinholeIntrinsics{camera.fx_px / n, camera.fy_px / n, (camera.cx_px + 0.5) / n - 0.5,
+                                       (camera.cy_px + 0.5) / n - 0.5};
+  ShadowRig rig;
+  rig.board_distance_m = prediction.data.board_distance_m;
+  rig.board_albedo = session.rig.board.albedo > 0 ? session.rig.board.albedo : 0.8;
+  rig.light_propagation = session.rig.projector.direction_in_sample.normalized();
+  if (!(rig.light_propagation.z() < 0)) {
+    return Status::Error(manifest +
+                         ": rig.projector.direction_in_sample must point from the projector to the board "
+                         "(negative z)");
+  }
+  scene.shadow_rig = rig;
+  scene.notes.push_back("round trip of " + run.session_dir + ": the capture's camera at 1/" + std::to_string(n) +
+                        " resolution, the board at " + std::to_string(rig.board_distance_m * 1e3) +
+                        " mm lit by a collimated light; the layer is seen by light only");
+
+  const std::string scene_dir = JoinPath(out.path(), "scene");
+  THINSLAB_RETURN_IF_ERROR(CreateDirectories(scene_dir));
+  const Provenance provenance{"roundtrip", run.session_dir, fit_dir, run.options_ini};
+  THINSLAB_RETURN_IF_ERROR(WriteBlenderScene(scene, scene_dir, provenance));
+  const std::string blender_log = JoinPath(scene_dir, "blender.log");
+  const std::string prefix = JoinPath(scene_dir, "render");
+  log << "roundtrip: rendering " << width << "x" << height << " px at " << run.samples << " samples, 3 passes, with "
+      << run.blender << " (log: " << JoinPath(JoinPath(out_dir, "scene"), "blender.log") << ")\n";
+  int exit_code = 0;
+  const Status started =
+      RunProgram({run.blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python",
+                  JoinPath(scene_dir, "scene.py"), "--", "--passes", prefix, "--samples", std::to_string(run.samples)},
+                 blender_log, &exit_code);
+  if (!started.ok()) {
+    return Status::Error("--blender: " + started.message() + " (install Debian's blender package, or give its path)");
+  }
+  if (exit_code != 0) {
+    std::string tail;
+    if (!ReadFileToString(blender_log, &tail).ok()) tail = "(unreadable)";
+    if (tail.size() > 2000) tail = "..." + tail.substr(tail.size() - 2000);
+    return Status::Error("--blender: '" + run.blender + "' exited with " + std::to_string(exit_code) + " rendering " +
+                         JoinPath(scene_dir, "scene.py") + "; its log ends:\n" + tail);
+  }
+  Image reference, shadow_1, shadow_2;
+  THINSLAB_RETURN_IF_ERROR(ReadRender(prefix + "_reference.exr", width, height, &reference));
+  THINSLAB_RETURN_IF_ERROR(ReadRender(prefix + "_shadow_1.exr", width, height, &shadow_1));
+  THINSLAB_RETURN_IF_ERROR(ReadRender(prefix + "_shadow_2.exr", width, height, &shadow_2));
+
+  // The rendered shadow in the capture's units: ratio to the rendered reference times the
+  // block's clean signal. Its noise from the two seeds: var(mean of 2) = (s1 - s2)^2 / 4.
+  BlockImages b = AverageBlocks(prediction.camera, n, width, height);
+  Image rendered(width, height), render_variance(width, height), capture_and_render_variance(width, height);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const size_t k = static_cast<size_t>(y) * width + x;
+      const double ref = reference.at(x, y);
+      if (!(ref > 0)) b.valid[k] = 0;
+      if (!b.valid[k]) continue;
+      const double clean = b.clean.at(x, y);
+      const double s1 = shadow_1.at(x, y) / ref, s2 = shadow_2.at(x, y) / ref;
+      rendered.at(x, y) = static_cast<float>(0.5 * (s1 + s2) * clean);
+      render_variance.at(x, y) = static_cast<float>(0.25 * (s1 - s2) * (s1 - s2) * clean * clean);
+      capture_and_render_variance.at(x, y) = b.variance.at(x, y) + render_variance.at(x, y);
+    }
+  }
+  const std::vector<ShadowPredictionRegion> render_vs_capture = CompareShadowPrediction(
+      rendered, b.predicted, b.measured, capture_and_render_variance, b.tau, b.sigma_tau, b.valid);
+  const std::vector<ShadowPredictionRegion> render_vs_predict =
+      CompareShadowPrediction(rendered, Image(), b.predicted, render_variance, b.tau, b.sigma_tau, b.valid);
+
+  Image images(
+      width, height,
+      {"rendered", "predicted", "measured", "variance", "render_variance", "valid", "tau", "difference", "clean"});
+  double white = 0;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const size_t k = static_cast<size_t>(y) * width + x;
+      if (!b.valid[k]) continue;
+      images.at(x, y, 0) = rendered.at(x, y);
+      images.at(x, y, 1) = b.predicted.at(x, y);
+      images.at(x, y, 2) = b.measured.at(x, y);
+      images.at(x, y, 3) = b.variance.at(x, y);
+      images.at(x, y, 4) = render_variance.at(x, y);
+      images.at(x, y, 5) = 1;
+      images.at(x, y, 6) = b.tau.at(x, y);
+      images.at(x, y, 7) = rendered.at(x, y) - b.measured.at(x, y);
+      images.at(x, y, 8) = b.clean.at(x, y);
+      white = std::max(white, static_cast<double>(b.clean.at(x, y)));
+    }
+  }
+  images.attributes()["units"] = "DN/us in the capture's camera pixels averaged over downsample^2 blocks";
+  THINSLAB_RETURN_IF_ERROR(
+      WriteMapExr(JoinPath(out.path(), "roundtrip.exr"), images, {"rendered", {"valid"}}, provenance));
+  if (!(white > 0)) {
+    return Status::Error(manifest + ": no camera pixel sees the fitted map with a clean signal; nothing to compare");
+  }
+  // capture | Blender | |Blender - capture| x 5 | predict, on one grey scale (white: the brightest
+  // clean signal).
+  Image magnified_difference(width, height);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) magnified_difference.at(x, y) = 5 * std::abs(images.at(x, y, 7));
+  }
+  THINSLAB_RETURN_IF_ERROR(WritePngAtomically(
+      JoinPath(out.path(), "roundtrip.png"),
+      SideBySide({LabelledRadianceTile(images, 2, white, "capture"), LabelledRadianceTile(images, 0, white, "Blender"),
+                  LabelledRadianceTile(magnified_difference, 0, white, "|diff| x5"),
+                  LabelledRadianceTile(images, 1, white, "predict")})));
+  Image invalid(width, height);
+  for (size_t k = 0; k < b.valid.size(); ++k) invalid.data()[k] = b.valid[k] ? 0.0f : 1.0f;
+  FalseColorOptions difference_colors;
+  difference_colors.scale_kind = ColorScale::kDiverging;
+  difference_colors.min_value = -0.1 * white;
+  difference_colors.max_value = 0.1 * white;
+  difference_colors.label = "render - capture";
+  THINSLAB_RETURN_IF_ERROR(
+      WriteFalseColorPng(JoinPath(out.path(), "difference.png"), images, 7, &invalid, difference_colors));
+
+  nlohmann::json j;
+  j["format"] = "thinslab-roundtrip-summary";
+  j["provenance"] = ProvenanceJson(provenance);
+  j["session"] = run.session_dir;
+  j["fit"] = fit_dir;
+  j["renderer"] = "blender";
+  j["samples"] = run.samples;
+  j["downsample"] = n;
+  j["image"] = {{"width", width}, {"height", height}};
+  j["board_distance_m"] = rig.board_distance_m;
+  j["layer"] = {{"g", scene.layer->g}, {"albedo", scene.layer->albedo}};
+  j["measured_frames"] = prediction.validation ? "validation" : "fitted";
+  j["regions"] = RoundTripRegionsJson(render_vs_capture, render_vs_predict);
+  j["notes"] = scene.notes;
+  std::ostringstream txt;
+  txt << "thinslab roundtrip: " << fit_dir << " rendered by Blender (Cycles, " << run.samples
+      << " samples) under the rig of " << run.session_dir << ", " << width << "x" << height << " px (" << n << "x" << n
+      << " camera pixels each), against the capture's " << (prediction.validation ? "validation" : "fitted")
+      << " shadow frames and thinslab predict:\n";
+  for (size_t k = 0; k < render_vs_capture.size(); ++k) {
+    const ShadowPredictionRegion& r = render_vs_capture[k];
+    txt << "  " << r.name << " (" << r.pixels << " px): Blender vs capture " << Fixed(r.relative_rms)
+        << ", predict vs capture " << Fixed(r.alternative_relative_rms) << ", Blender vs predict "
+        << Fixed(render_vs_predict[k].relative_rms) << " (noise: capture + render " << Fixed(r.noise_relative_rms)
+        << ", render " << Fixed(render_vs_predict[k].noise_relative_rms) << ")\n";
+  }
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), j.dump(2) + "\n"));
+  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), txt.str()));
+  if (!run.options_ini.empty()) {
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
+  }
+  THINSLAB_RETURN_IF_ERROR(out.Commit());
+  log << txt.str() << "wrote " << out_dir << "\n";
+  return Status::Ok();
+}
+
+}  // namespace thinslab

@@ -1,0 +1,142 @@
+// SPDX-License-Identifier: Apache-2.0
+// Issue #27 item 3, through the binary: a simulated shadow-map capture (Monte Carlo layer, sensor
+// noise, quantisation: a more complete forward model than the fitted one) is fitted with `fit
+// tau`, and `thinslab roundtrip` renders the fitted layer with Blender (Cycles, Debian's blender)
+// under the capture's own rig and camera. The render must reproduce the captured shadow within
+// what the noise of the capture and of the render and the map's own error allow, and agree with
+// `thinslab predict`. The check can fail: the same render of a map with tau doubled reads far
+// worse, and so does the clean board (no layer at all).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+
+#include "tests/testing/json_file.h"
+#include "tests/testing/run_ok.h"
+#include "tests/testing/temp_dir.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+
+namespace thinslab {
+namespace {
+
+// sqrt(sum (a - b)^2 / sum b^2) over the valid pixels of roundtrip.exr.
+double RelativeRms(const Image& images, const std::string& a, const std::string& b) {
+  const int ai = images.ChannelIndex(a), bi = images.ChannelIndex(b), valid = images.ChannelIndex("valid");
+  double err = 0, norm = 0;
+  for (int y = 0; y < images.height(); ++y) {
+    for (int x = 0; x < images.width(); ++x) {
+      if (images.at(x, y, valid) == 0) continue;
+      err += std::pow(images.at(x, y, ai) - images.at(x, y, bi), 2);
+      norm += std::pow(images.at(x, y, bi), 2);
+    }
+  }
+  return norm > 0 ? std::sqrt(err / norm) : -1;
+}
+
+// A copy of FIT with tau (and tau_eq7) multiplied by `factor`.
+void ScaledFit(const std::string& fit, const std::string& out, double factor) {
+  ASSERT_TRUE(CreateDirectories(out).ok());
+  std::string summary;
+  ASSERT_TRUE(ReadFileToString(fit + "/summary.json", &summary).ok());
+  ASSERT_TRUE(WriteFileAtomically(out + "/summary.json", summary).ok());
+  Image tau;
+  ASSERT_TRUE(ReadExr(fit + "/tau.exr", &tau).ok());
+  for (const char* name : {"tau", "tau_eq7"}) {
+    const int c = tau.ChannelIndex(name);
+    ASSERT_GE(c, 0) << name;
+    for (int y = 0; y < tau.height(); ++y) {
+      for (int x = 0; x < tau.width(); ++x) tau.at(x, y, c) = static_cast<float>(factor * tau.at(x, y, c));
+    }
+  }
+  ASSERT_TRUE(WriteExr(out + "/tau.exr", tau).ok());
+}
+
+TEST(CliRoundTrip, BlenderRenderOfTheFittedLayerReproducesTheCaptureAndPredict) {
+  ASSERT_EQ(std::system("command -v blender > /dev/null"), 0) << "blender is missing (scripts/install_deps.sh)";
+  TempDir dir;
+  const std::string capture = dir / "capture";
+  // Board at 5 mm: the scattered light (Gu Eq. 6) spreads over several camera pixels, so the
+  // render's volume scattering is part of what is compared.
+  RunThinslabOk("sim shadow-maps " + capture +
+                " --camera-width-px 320 --camera-height-px 240 --photons 20000 --frames 2 --board-distance-mm 5 "
+                "--seed 3");
+  RunThinslabOk("fit tau " + capture);
+  const RunResult run = RunThinslabOk("roundtrip " + capture + " --samples 32 --downsample 2");
+  std::printf("%s\n", run.output.c_str());
+  const std::string out = capture + "/fit/roundtrip";
+  const nlohmann::json summary = ReadJsonFile(out + "/summary.json");
+  EXPECT_EQ(summary["format"], "thinslab-roundtrip-summary");
+  EXPECT_EQ(summary["image"]["width"], 160);
+  EXPECT_EQ(summary["image"]["height"], 120);
+
+  // Per region: the render against the capture within what the capture's and the render's noise
+  // and the map's own error (sigma_tau) allow, and no worse than thinslab's own prediction by
+  // more than that allowance; the render against predict within the render's noise plus 1 % for
+  // the models' difference (Cycles' volume with all orders of scattering vs Gu Eq. 6's single
+  // scattering).
+  for (const char* name : {"thin", "all"}) {
+    const nlohmann::json& r = Region(summary["regions"], name);
+    ASSERT_GT(r["pixels"].get<int>(), 300) << r.dump();
+    const double render = r["render_vs_capture_relative_rms"], predict = r["predict_vs_capture_relative_rms"],
+                 between = r["render_vs_predict_relative_rms"];
+    const double allowed = std::hypot(r["noise_relative_rms"].get<double>(), r["sigma_tau_relative_rms"].get<double>());
+    std::printf("%s: render vs capture %.4f, predict vs capture %.4f, render vs predict %.4f, allowed %.4f\n", name,
+                render, predict, between, allowed);
+    EXPECT_LT(render, 2 * allowed + 0.01) << r.dump();
+    EXPECT_LT(render, predict + allowed) << r.dump();
+    EXPECT_LT(between, 1.5 * r["render_noise_relative_rms"].get<double>() + 0.01) << r.dump();
+  }
+
+  // The comparison can fail: the clean board is far from the capture, and so is the render of
+  // a map with tau doubled.
+  Image images;
+  ASSERT_TRUE(ReadExr(out + "/roundtrip.exr", &images).ok());
+  const double render_error = RelativeRms(images, "rendered", "measured");
+  const double no_layer_error = RelativeRms(images, "clean", "measured");
+  std::printf("roundtrip.exr: render vs capture %.4f, clean board vs capture %.4f\n", render_error, no_layer_error);
+  EXPECT_LT(render_error, 0.25 * no_layer_error);
+  ScaledFit(capture + "/fit/tau", dir / "doubled", 2.0);
+  RunThinslabOk("roundtrip " + capture + " --fit " + (dir / "doubled") + " --out " + (dir / "doubled_roundtrip") +
+                " --samples 32 --downsample 2");
+  const double doubled_error =
+      Region(ReadJsonFile(dir / "doubled_roundtrip/summary.json")["regions"], "all")["render_vs_capture_relative_rms"];
+  std::printf("tau doubled: render vs capture %.4f\n", doubled_error);
+  EXPECT_GT(doubled_error, 3 * render_error);
+
+  // capture | Blender | difference | predict, each tile the render's size under a label header.
+  const cv::Mat png = cv::imread(out + "/roundtrip.png", cv::IMREAD_COLOR);
+  ASSERT_FALSE(png.empty());
+  EXPECT_EQ(png.cols, 4 * 160 + 3 * 6);
+  EXPECT_EQ(png.rows, 120 + 28);
+  EXPECT_TRUE(FileExists(out + "/difference.png"));
+  EXPECT_TRUE(FileExists(out + "/scene/scene.py"));
+  EXPECT_TRUE(FileExists(out + "/options.ini"));
+}
+
+TEST(CliRoundTrip, RefusesWhatItCannotRenderByName) {
+  TempDir dir;
+  const std::string capture = dir / "capture";
+  RunThinslabOk("sim shadow-maps " + capture + " --camera-width-px 64 --camera-height-px 48 --photons 2000 --frames 1");
+  RunResult r = RunThinslab("roundtrip " + capture);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("fit tau"), std::string::npos) << r.output;
+  RunThinslabOk("fit tau " + capture);
+  r = RunThinslab("roundtrip " + capture + " --blender /nonexistent/blender");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--blender: cannot run '/nonexistent/blender'"), std::string::npos) << r.output;
+  EXPECT_FALSE(FileExists(capture + "/fit/roundtrip"));
+  r = RunThinslab("roundtrip " + capture + " --downsample 16");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--downsample 16"), std::string::npos) << r.output;
+  r = RunThinslab("roundtrip " + capture + " --samples 0");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--samples"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace thinslab
