@@ -3,9 +3,10 @@
 # THE test command (README, .ci/run): installs Debian packages, configures, builds, runs every
 # test; installs and builds a downstream project against the install; builds the refit-only
 # (device-free) tree and runs the device-free stages' tests there; then, unless THINSLAB_SKIP_SANITIZERS=1, rebuilds with ASan+UBSan and runs every test
-# again except those labelled `matrix` (simulation-heavy stability and knob sweeps, whose code
-# the e2e tests run under the sanitizers too: the laser lobe's seed and g entry, the tau/g stability matrix,
-# the acquired dot-scan chain of cli_gamma_test).
+# again except those labelled `matrix` (simulation-heavy stability and knob sweeps and the heavier
+# cases of the e2e tests, whose code the remaining cases run under the sanitizers: the laser
+# lobe's seed and g entries, the 10-mm dirty-glass board, the dmf CLI ladder, the tau/g stability
+# matrix, the acquired dot-scan chain of cli_gamma_test, the Blender round trip).
 # Measured on the 2-core CI machine: see docs/benchmarks.md (CI time).
 set -euo pipefail
 cd "$(dirname "$0")/.."
