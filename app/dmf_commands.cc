@@ -99,6 +99,19 @@ int RunFitDmf(int argc, char** argv) {
   std::string pixel;
   parser.AddString("pixel", &pixel, "X,Y: print this map point's dots, alpha iterations and result (as pbrt's --pixel)");
   parser.MarkDiagnostic("pixel");
+  // Issue #29: neither changes the maps, so neither enters the options digest.
+  double max_memory_gib = kDefaultMaxMemoryGiB;
+  parser.AddDouble("max-memory", &max_memory_gib,
+                   "memory budget [GiB] of the whole fit; a larger grid streams its slices from disk (same maps); "
+                   "0 = no budget");
+  parser.MarkDiagnostic("max-memory");
+  parser.AddString("spill-dir", &run.processing.spill_dir,
+                   "folder of the streamed slices' file (unlinked, never left behind); default: beside the output");
+  parser.MarkDiagnostic("spill-dir");
+  parser.AddInt("stream-band-points", &run.processing.stream_band_points,
+                "stream the slices from disk whatever --max-memory, in bands of at most this many points (whole "
+                "grid rows); 0 = only over the budget");
+  parser.MarkDiagnostic("stream-band-points");
   Status status = parser.Parse(argc, argv);
   if (parser.help_requested()) {
     std::cout << parser.Usage();
@@ -107,6 +120,10 @@ int RunFitDmf(int argc, char** argv) {
   if (status.ok()) status = ParsePixelTrace(pixel, "--pixel", &run.fit.trace);
   run.fit.trace.out = &std::cout;
   if (status.ok()) status = CheckDotRadiusOption(parser, run.processing.dot_radius_px);
+  if (status.ok() && !(max_memory_gib >= 0 && max_memory_gib <= 1 << 20)) {
+    status = Status::Error("--max-memory: must be >= 0 GiB (0 = no budget), got " + std::to_string(max_memory_gib));
+  }
+  run.processing.max_memory_bytes = max_memory_gib * double(1u << 30);
   run.processing.pitch_m = pitch_mm * 1e-3;
   run.processing.glass_thickness_m = glass_thickness_mm < 0 ? -1 : glass_thickness_mm * 1e-3;
   if (status.ok() && parser.IsSet("glass-thickness-mm") && glass_thickness_mm != -1 &&

@@ -48,9 +48,10 @@ void ParallelFor(int n, int num_threads, const Body& body) {
 
 // ParallelFor with progress: the calling thread reports the items done after each item it
 // runs (core/progress.h: the callback never runs on a worker); once the callback cancels, no
-// thread starts another item. Returns false when cancelled.
+// thread starts another item. Returns false when cancelled. `done_before`: items of the same
+// stage finished by earlier calls (a stage run in parts, e.g. one band of map points at a time).
 template <typename Body>
-bool ParallelFor(int n, int num_threads, const Body& body, ProgressTracker* progress) {
+bool ParallelFor(int n, int num_threads, const Body& body, ProgressTracker* progress, int64_t done_before = 0) {
   if (progress == nullptr) {
     ParallelFor(n, num_threads, body);
     return true;
@@ -61,7 +62,7 @@ bool ParallelFor(int n, int num_threads, const Body& body, ProgressTracker* prog
     for (int k = next++; k < n && !progress->cancelled(); k = next++) {
       body(k);
       const int64_t finished = ++done;
-      if (reports) progress->Report(finished);
+      if (reports) progress->Report(done_before + finished);
     }
   };
   std::vector<std::thread> threads;
@@ -75,7 +76,7 @@ bool ParallelFor(int n, int num_threads, const Body& body, ProgressTracker* prog
   }
   worker(true);
   for (auto& t : threads) t.join();
-  if (!progress->cancelled()) progress->Report(n);
+  if (!progress->cancelled()) progress->Report(done_before + n);
   return !progress->cancelled();
 }
 

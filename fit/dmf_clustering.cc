@@ -122,41 +122,75 @@ bool DmfClusteringOptions::Check(std::string* error) const {
   return error->empty();
 }
 
+DmfShapeClusterer::DmfShapeClusterer(const std::vector<uint8_t>& valid, const DmfClusteringOptions& options)
+    : options_(options), num_points_(static_cast<int>(valid.size())), rng_(options.seed) {
+  row_of_point_.assign(num_points_, -1);
+  for (int p = 0; p < num_points_; ++p) {
+    if (!valid[p]) continue;
+    row_of_point_[p] = static_cast<int>(points_.size());
+    points_.push_back(p);
+  }
+  if (points_.empty()) return;
+  // Principal components of the shapes, from a subsample.
+  sample_ = points_;
+  std::shuffle(sample_.begin(), sample_.end(), rng_);
+  sample_.resize(std::min<size_t>(sample_.size(), options.subsample));
+}
+
+void DmfShapeClusterer::FitProjection(const Eigen::MatrixXf& sample_shapes) {
+  if (points_.empty()) return;
+  CHECK_EQ(static_cast<size_t>(sample_shapes.rows()), sample_.size());
+  const int dims = static_cast<int>(sample_shapes.cols());
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(dims);
+  for (size_t s = 0; s < sample_.size(); ++s) mean += sample_shapes.row(s).transpose().cast<double>();
+  mean /= sample_.size();
+  Eigen::MatrixXd centred(sample_.size(), dims);
+  for (size_t s = 0; s < sample_.size(); ++s) centred.row(s) = sample_shapes.row(s).cast<double>() - mean.transpose();
+  const Eigen::MatrixXd covariance = centred.transpose() * centred / std::max<size_t>(1, sample_.size() - 1);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(covariance);
+  const int pca = std::min(options_.pca_dims, dims);
+  basis_ = eig.eigenvectors().rightCols(pca).cast<float>();
+  const double total_variance = std::max(1e-300, eig.eigenvalues().sum());
+  pca_explained_ = eig.eigenvalues().tail(pca).sum() / total_variance;
+  mean_ = mean.transpose().cast<float>();
+  projected_.resize(points_.size(), pca);
+  shape_norm_.assign(points_.size(), 0.0);
+}
+
+void DmfShapeClusterer::Project(int p, const Eigen::MatrixXf& shapes, int row) {
+  const int k = row_of_point_[p];
+  CHECK_GE(k, 0) << "DmfShapeClusterer::Project: point " << p << " is not valid";
+  projected_.row(k) = (shapes.row(row) - mean_) * basis_;
+  shape_norm_[k] = (shapes.row(row).cast<double>()).norm();
+}
+
 DmfClustering ClusterSlices(const Eigen::MatrixXf& shapes, const std::vector<uint8_t>& valid,
                             const DmfClusteringOptions& options) {
   CHECK_EQ(static_cast<size_t>(shapes.rows()), valid.size());
-  DmfClustering out;
-  out.num_neighbors = options.num_neighbors;
-  const int num_points = static_cast<int>(shapes.rows());
-  out.neighbors.assign(static_cast<size_t>(num_points) * options.num_neighbors, -1);
-  out.weights.assign(out.neighbors.size(), 0.0);
-  out.cluster.assign(num_points, -1);
-  std::vector<int> points;
-  for (int p = 0; p < num_points; ++p) {
-    if (valid[p]) points.push_back(p);
+  DmfShapeClusterer clusterer(valid, options);
+  const std::vector<int>& sample = clusterer.pca_sample();
+  Eigen::MatrixXf sample_shapes(sample.size(), shapes.cols());
+  for (size_t s = 0; s < sample.size(); ++s) sample_shapes.row(s) = shapes.row(sample[s]);
+  clusterer.FitProjection(sample_shapes);
+  for (size_t p = 0; p < valid.size(); ++p) {
+    if (valid[p]) clusterer.Project(static_cast<int>(p), shapes, static_cast<int>(p));
   }
-  if (points.empty()) return out;
-  std::mt19937_64 rng(options.seed);
+  return clusterer.Cluster();
+}
 
-  // Principal components of the shapes, from a subsample.
-  std::vector<int> sample = points;
-  std::shuffle(sample.begin(), sample.end(), rng);
-  sample.resize(std::min<size_t>(sample.size(), options.subsample));
-  const int dims = static_cast<int>(shapes.cols());
-  Eigen::VectorXd mean = Eigen::VectorXd::Zero(dims);
-  for (int p : sample) mean += shapes.row(p).transpose().cast<double>();
-  mean /= sample.size();
-  Eigen::MatrixXd centred(sample.size(), dims);
-  for (size_t s = 0; s < sample.size(); ++s) centred.row(s) = shapes.row(sample[s]).cast<double>() - mean.transpose();
-  const Eigen::MatrixXd covariance = centred.transpose() * centred / std::max<size_t>(1, sample.size() - 1);
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(covariance);
-  const int pca = std::min(options.pca_dims, dims);
-  const Eigen::MatrixXf basis = eig.eigenvectors().rightCols(pca).cast<float>();
-  const double total_variance = std::max(1e-300, eig.eigenvalues().sum());
-  out.pca_explained = eig.eigenvalues().tail(pca).sum() / total_variance;
-  const Eigen::RowVectorXf mean_f = mean.transpose().cast<float>();
-  RowMatrix projected(points.size(), pca);
-  for (size_t k = 0; k < points.size(); ++k) projected.row(k) = (shapes.row(points[k]) - mean_f) * basis;
+DmfClustering DmfShapeClusterer::Cluster() {
+  DmfClustering out;
+  out.num_neighbors = options_.num_neighbors;
+  out.neighbors.assign(static_cast<size_t>(num_points_) * options_.num_neighbors, -1);
+  out.weights.assign(out.neighbors.size(), 0.0);
+  out.cluster.assign(num_points_, -1);
+  if (points_.empty()) return out;
+  const DmfClusteringOptions& options = options_;
+  const std::vector<int>& points = points_;
+  const RowMatrix& projected = projected_;
+  std::mt19937_64& rng = rng_;
+  const int pca = static_cast<int>(basis_.cols());
+  out.pca_explained = pca_explained_;
 
   const int num_clusters = std::min<int>(
       static_cast<int>(points.size()),
@@ -249,7 +283,7 @@ DmfClustering ClusterSlices(const Eigen::MatrixXf& shapes, const std::vector<uin
       out.neighbors[base + j] = order[j];
       out.weights[base + j] = w[j];
     }
-    const double scale = (shapes.row(points[k]).cast<double>()).norm();
+    const double scale = shape_norm_[k];
     if (scale > 0) {
       residual_sum += residual / scale;
       ++residual_count;

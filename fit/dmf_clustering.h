@@ -21,6 +21,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,36 @@ struct DmfClustering {
 // a point (it gets no neighbours).
 DmfClustering ClusterSlices(const Eigen::MatrixXf& shapes, const std::vector<uint8_t>& valid,
                             const DmfClusteringOptions& options);
+
+// ClusterSlices in steps, for maps whose shapes are never all in memory at once (issue #29,
+// `fit dmf --max-memory`): the principal components from the subsample's shapes, then every
+// valid point's shape projected (in any order, e.g. one band of points at a time), then the
+// clustering. The same random draws in the same order as ClusterSlices, so the same result.
+class DmfShapeClusterer {
+ public:
+  DmfShapeClusterer(const std::vector<uint8_t>& valid, const DmfClusteringOptions& options);
+  // The points whose shapes FitProjection needs, in the order it needs them.
+  const std::vector<int>& pca_sample() const { return sample_; }
+  // Row s of `sample_shapes`: the shape of pca_sample()[s].
+  void FitProjection(const Eigen::MatrixXf& sample_shapes);
+  // Row `row` of `shapes` is the shape of valid point p (after FitProjection; thread-safe for
+  // distinct points).
+  void Project(int p, const Eigen::MatrixXf& shapes, int row);
+  // After every valid point was projected.
+  DmfClustering Cluster();
+
+ private:
+  using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  DmfClusteringOptions options_;
+  int num_points_ = 0;
+  std::mt19937_64 rng_;
+  std::vector<int> points_, row_of_point_, sample_;
+  Eigen::RowVectorXf mean_;
+  Eigen::MatrixXf basis_;
+  double pca_explained_ = 0;
+  RowMatrix projected_;
+  std::vector<double> shape_norm_;  // |shape| of each valid point, for the Eq. 21 residual's scale.
+};
 
 // Eqs. 21-22 with w >= 0: the least-squares solution of G w = y (columns of G: the neighbouring
 // representatives' slices, y: the point's) subject to sum w = 1 and w >= 0, exact (an active set

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/fit/dmf_evaluation.h"
 
+#include <glog/logging.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -8,6 +9,7 @@
 
 #include "thinslab/core/file.h"
 #include "thinslab/core/math.h"
+#include "thinslab/core/parallel.h"
 #include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
@@ -88,9 +90,27 @@ double NdfRelativeL2(const DmfPointFit& fit, const DmfNdfGrid& grid, const DmfTr
 std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps,
                                                    const std::vector<DmfTruthRegion>& regions,
                                                    double held_out_tolerance) {
+  std::vector<DmfRegionAccuracy> out;
+  const Status status = CompareDmfWithTruth(slices, maps, regions, held_out_tolerance, &out);
+  CHECK(status.ok()) << status.message();  // Slices in memory: nothing to read.
+  return out;
+}
+
+Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
+                           double held_out_tolerance, std::vector<DmfRegionAccuracy>* accuracy) {
   const DmfNdfGrid grid(maps.ndf_resolution);
   const bool held_out = std::any_of(slices.train.begin(), slices.train.end(), [](uint8_t t) { return t == 0; });
-  std::vector<DmfRegionAccuracy> out;
+  // Held-out errors first, one band of points at a time (streamed slices).
+  std::vector<double> held_out_error(slices.num_points(), -1);
+  if (held_out) {
+    THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
+      ParallelFor(count, DefaultThreadCount(),
+                  [&](int k) { held_out_error[first + k] = DmfHeldOutError(slices, maps, first + k); });
+      return Status::Ok();
+    }));
+  }
+  std::vector<DmfRegionAccuracy>& out = *accuracy;
+  out.clear();
   for (const DmfTruthRegion& r : regions) {
     DmfRegionAccuracy a;
     a.name = r.name;
@@ -116,7 +136,7 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
       ++a.statuses[static_cast<int>(f.status)];
       const bool ok = f.status == DmfStatus::kOk || f.status == DmfStatus::kInterpolated;
       ++(ok ? a.ok : a.flagged);
-      if (f.log_ndf.empty()) continue;
+      if (!f.HasNdf()) continue;
       ++a.fitted;
       alpha.push_back(f.alpha);
       k_s.push_back(f.k_s);
@@ -136,7 +156,7 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
         }
       }
       if (single != nullptr) {
-        ndf.push_back(NdfRelativeL2(f, grid, *single));
+        ndf.push_back(NdfRelativeL2(f.log_ndf.empty() ? maps.FitWithNdf(p) : f, grid, *single));
         family_right += NdfFamilyName(f.roughness.family) == single->ndf;
         family_undecided += f.roughness.family == NdfFamily::kUndecided;
         face_right += RoughFaceOf(f.alpha) == (single == &r.top ? RoughFace::kTop : RoughFace::kBottom);
@@ -144,7 +164,7 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
       bool correct = f.k_s * kDmfCorrectKsRatio >= r.k_s && f.k_s <= kDmfCorrectKsRatio * r.k_s;
       if (const DmfTruthFace* face = r.SingleRoughFace()) correct = correct && (f.alpha > 0.5) == (face == &r.top);
       if (held_out) {
-        const double e = DmfHeldOutError(slices, maps, p);
+        const double e = held_out_error[p];
         if (e >= 0) held.push_back(e);
         if (ok && e > held_out_tolerance) ++a.silent_wrong;
         correct = correct && e <= held_out_tolerance;
@@ -174,7 +194,7 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
     }
     out.push_back(a);
   }
-  return out;
+  return Status::Ok();
 }
 
 std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
@@ -216,86 +236,110 @@ std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy) {
 }
 
 namespace {
-
-// Predictions of the dots `use` selects (positions, values point-major with `stride` dots per
-// point, sigma may be empty) against their measurements, as EvaluateValidationDots describes.
-std::vector<DmfValidationError> EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
-                                                       const std::vector<DmfTruthRegion>& regions, double lobe_fraction,
-                                                       const std::vector<Eigen::Vector3d>& positions,
-                                                       const std::vector<float>& value, const std::vector<float>& sigma,
-                                                       const std::vector<uint8_t>& use) {
+// Predictions of the dots `use` selects (positions; each point's values and sigmas from
+// `values(p)` and `sigmas(p)`, sigmas may be nullptr) against their measurements, as
+// EvaluateValidationDots describes; points visited band by band (ForEachPointBand) when
+// `banded`, else all at once.
+template <typename Values, typename Sigmas>
+Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
+                              double lobe_fraction, const std::vector<Eigen::Vector3d>& positions, const Values& values,
+                              const Sigmas& sigmas, const std::vector<uint8_t>& use, bool banded,
+                              std::vector<DmfValidationError>* result) {
   const int nd = static_cast<int>(positions.size());
-  std::vector<DmfValidationError> out(1 + regions.size());
+  std::vector<DmfValidationError>& out = *result;
+  out.assign(1 + regions.size(), DmfValidationError());
   out[0].region = "all";
   for (size_t r = 0; r < regions.size(); ++r) out[1 + r].region = regions[r].name;
-  if (std::none_of(use.begin(), use.end(), [](uint8_t u) { return u != 0; })) return out;
+  if (std::none_of(use.begin(), use.end(), [](uint8_t u) { return u != 0; })) return Status::Ok();
   const DmfNdfGrid grid(maps.ndf_resolution);
   std::vector<double> num(out.size(), 0), den(out.size(), 0), noise(out.size(), 0);
-  for (int p = 0; p < slices.num_points(); ++p) {
-    const DmfPointFit& fit = maps.fits[p];
-    if ((fit.status != DmfStatus::kOk && fit.status != DmfStatus::kInterpolated) || fit.log_ndf.empty()) continue;
-    const Eigen::Vector3d x = slices.PointPosition(p);
-    const Eigen::Vector3d entry = slices.LightEntryPoint(p);
-    const Eigen::Vector3d o = SampleToOptical((slices.camera_centre - x).normalized());
-    const size_t base = static_cast<size_t>(p) * nd;
-    double peak = 0;
-    for (int v = 0; v < nd; ++v) {
-      if (use[v]) peak = std::max(peak, value[base + v] - fit.rho_d);
-    }
-    if (!(peak > 0)) continue;
-    double point_num = 0, point_den = 0, point_noise = 0;
-    int point_pairs = 0;
-    for (int v = 0; v < nd; ++v) {
-      const double above = value[base + v] - fit.rho_d;
-      if (!use[v] || above < lobe_fraction * peak) continue;
-      const Eigen::Vector3d i = SampleToOptical((positions[v] - entry).normalized());
-      const double d = PredictDualMicrofacet(fit, grid, maps.eta, i, o) - value[base + v];
-      point_num += d * d;
-      point_den += above * above;
-      if (!sigma.empty()) point_noise += Sqr(static_cast<double>(sigma[base + v]));
-      ++point_pairs;
-    }
-    auto add = [&](size_t k) {
-      ++out[k].points;
-      out[k].pairs += point_pairs;
-      num[k] += point_num;
-      den[k] += point_den;
-      noise[k] += point_noise;
-    };
-    add(0);
-    for (size_t r = 0; r < regions.size(); ++r) {
-      const DmfTruthRegion& region = regions[r];
-      const double margin = slices.pitch_m;
-      if (x.x() >= region.min_m.x() + margin && x.x() <= region.max_m.x() - margin &&
-          x.y() >= region.min_m.y() + margin && x.y() <= region.max_m.y() - margin) {
-        add(1 + r);
+  auto points = [&](int first, int count) {
+    for (int p = first; p < first + count; ++p) {
+      const DmfPointFit& stored = maps.fits[p];
+      if ((stored.status != DmfStatus::kOk && stored.status != DmfStatus::kInterpolated) || !stored.HasNdf()) continue;
+      const Eigen::Vector3d x = slices.PointPosition(p);
+      const Eigen::Vector3d entry = slices.LightEntryPoint(p);
+      const Eigen::Vector3d o = SampleToOptical((slices.camera_centre - x).normalized());
+      const float* value = values(p);
+      const float* sigma = sigmas(p);
+      double peak = 0;
+      for (int v = 0; v < nd; ++v) {
+        if (use[v]) peak = std::max(peak, value[v] - stored.rho_d);
+      }
+      if (!(peak > 0)) continue;
+      DmfPointFit rebuilt;
+      const DmfPointFit& fit = stored.log_ndf.empty() ? (rebuilt = maps.FitWithNdf(p)) : stored;
+      double point_num = 0, point_den = 0, point_noise = 0;
+      int point_pairs = 0;
+      for (int v = 0; v < nd; ++v) {
+        const double above = value[v] - fit.rho_d;
+        if (!use[v] || above < lobe_fraction * peak) continue;
+        const Eigen::Vector3d i = SampleToOptical((positions[v] - entry).normalized());
+        const double d = PredictDualMicrofacet(fit, grid, maps.eta, i, o) - value[v];
+        point_num += d * d;
+        point_den += above * above;
+        if (sigma != nullptr) point_noise += Sqr(static_cast<double>(sigma[v]));
+        ++point_pairs;
+      }
+      auto add = [&](size_t k) {
+        ++out[k].points;
+        out[k].pairs += point_pairs;
+        num[k] += point_num;
+        den[k] += point_den;
+        noise[k] += point_noise;
+      };
+      add(0);
+      for (size_t r = 0; r < regions.size(); ++r) {
+        const DmfTruthRegion& region = regions[r];
+        const double margin = slices.pitch_m;
+        if (x.x() >= region.min_m.x() + margin && x.x() <= region.max_m.x() - margin &&
+            x.y() >= region.min_m.y() + margin && x.y() <= region.max_m.y() - margin) {
+          add(1 + r);
+        }
       }
     }
-  }
+    return Status::Ok();
+  };
+  THINSLAB_RETURN_IF_ERROR(banded ? ForEachPointBand(slices, points) : points(0, slices.num_points()));
   for (size_t k = 0; k < out.size(); ++k) {
     if (!(den[k] > 0)) continue;
     out[k].relative_rms = std::sqrt(num[k] / den[k]);
     out[k].noise_relative_rms = std::sqrt(noise[k] / den[k]);
   }
-  return out;
+  return Status::Ok();
 }
-
 }  // namespace
 
 std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
                                                        const std::vector<DmfTruthRegion>& regions,
                                                        double lobe_fraction) {
   const DmfValidationDots& validation = slices.validation;
-  return EvaluateDotPredictions(slices, maps, regions, lobe_fraction, validation.positions, validation.value,
-                                validation.sigma, std::vector<uint8_t>(validation.positions.size(), 1));
+  const size_t nv = validation.positions.size();
+  std::vector<DmfValidationError> out;
+  const Status status = EvaluateDotPredictions(
+      slices, maps, regions, lobe_fraction, validation.positions,
+      [&](int p) { return validation.value.data() + static_cast<size_t>(p) * nv; },
+      [&](int p) { return validation.sigma.empty() ? nullptr : validation.sigma.data() + static_cast<size_t>(p) * nv; },
+      std::vector<uint8_t>(nv, 1), false, &out);
+  CHECK(status.ok()) << status.message();  // In memory: nothing to read.
+  return out;
+}
+
+Status EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
+                           double lobe_fraction, std::vector<DmfValidationError>* out) {
+  std::vector<uint8_t> held_out(slices.train.size());
+  for (size_t q = 0; q < held_out.size(); ++q) held_out[q] = slices.train[q] == 0;
+  return EvaluateDotPredictions(
+      slices, maps, regions, lobe_fraction, slices.dot_positions, [&](int p) { return slices.PointValues(p); },
+      [&](int p) { return slices.PointSigmas(p); }, held_out, true, out);
 }
 
 std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps,
                                                     const std::vector<DmfTruthRegion>& regions, double lobe_fraction) {
-  std::vector<uint8_t> held_out(slices.train.size());
-  for (size_t q = 0; q < held_out.size(); ++q) held_out[q] = slices.train[q] == 0;
-  return EvaluateDotPredictions(slices, maps, regions, lobe_fraction, slices.dot_positions, slices.value,
-                                slices.sigma, held_out);
+  std::vector<DmfValidationError> out;
+  const Status status = EvaluateHeldOutDots(slices, maps, regions, lobe_fraction, &out);
+  CHECK(status.ok()) << status.message();  // Slices in memory: nothing to read.
+  return out;
 }
 
 }  // namespace thinslab

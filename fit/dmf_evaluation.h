@@ -79,9 +79,13 @@ struct DmfRegionAccuracy {
 constexpr double kDmfCorrectKsRatio = 1.5;
 
 // `held_out_tolerance`: the held-out error above which an ok point counts as silently wrong.
+// Slices in memory; the Status form also reads streamed slices band by band (ForEachPointBand)
+// and returns the spill's read errors.
 std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps,
                                                    const std::vector<DmfTruthRegion>& regions,
                                                    double held_out_tolerance = 0.5);
+Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
+                           double held_out_tolerance, std::vector<DmfRegionAccuracy>* accuracy);
 std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy);
 
 // How well the fitted maps predict the capture's validation dots (DmfValidationDots; issue #23
@@ -103,8 +107,11 @@ std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices
 
 // The same for the grid's held-out dots (DmfSliceSet::train 0; `fit dmf --hold-out`): reported
 // whenever dots are held out, with or without the model ladder.
+// (Slices in memory; the Status form as CompareDmfWithTruth's.)
 std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps,
                                                     const std::vector<DmfTruthRegion>& regions,
                                                     double lobe_fraction = 0.1);
+Status EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
+                           double lobe_fraction, std::vector<DmfValidationError>* out);
 
 }  // namespace thinslab

@@ -52,7 +52,7 @@ DmfSlice DmfSliceSet::Slice(int p) const {
   slice.i.resize(nd);
   slice.value.resize(nd);
   slice.solid_angle.resize(nd);
-  if (!sigma.empty()) slice.sigma.resize(nd);
+  if (PointSigmas(p) != nullptr) slice.sigma.resize(nd);
   slice.train = train;
   if (static_cast<int>(nd) == dots_nx * dots_ny) {
     slice.edge.resize(nd);
@@ -62,17 +62,46 @@ DmfSlice DmfSliceSet::Slice(int p) const {
                       (iy == 0 ? kFirstRow : 0) | (iy == dots_ny - 1 ? kLastRow : 0);
     }
   }
-  const size_t base = static_cast<size_t>(p) * nd;
+  const float* values = PointValues(p);
+  const float* sigmas = PointSigmas(p);
   for (int q = 0; q < nd; ++q) {
     const Eigen::Vector3d to_dot = dot_positions[q] - entry;
     const double r = to_dot.norm();
     slice.i[q] = SampleToOptical(to_dot / r);
-    slice.value[q] = value[base + q];
-    if (!sigma.empty()) slice.sigma[q] = sigma[base + q];
+    slice.value[q] = values[q];
+    if (sigmas != nullptr) slice.sigma[q] = sigmas[q];
     slice.solid_angle[q] = dot_cell_area_m2 * (std::abs(to_dot.z()) / r) / (r * r);
   }
   slice.rho_d = EstimateDiffuse(slice, dots_nx, dots_ny);
   return slice;
+}
+
+const float* DmfSliceSet::PointValues(int p) const {
+  return spill ? spill->Values(p) : value.data() + static_cast<size_t>(p) * num_dots();
+}
+
+const float* DmfSliceSet::PointSigmas(int p) const {
+  if (spill) return spill->Sigmas(p);
+  return sigma.empty() ? nullptr : sigma.data() + static_cast<size_t>(p) * num_dots();
+}
+
+Status ForEachPointBand(const DmfSliceSet& slices, const std::function<Status(int first, int count)>& body) {
+  const int np = slices.num_points();
+  if (!slices.spill) return body(0, np);
+  const int band = slices.spill->band_points();
+  for (int first = 0; first < np; first += band) {
+    const int count = std::min(band, np - first);
+    THINSLAB_RETURN_IF_ERROR(slices.spill->LoadBand(first, count));
+    THINSLAB_RETURN_IF_ERROR(body(first, count));
+  }
+  return Status::Ok();
+}
+
+Status LoadPointBandOf(const DmfSliceSet& slices, int p) {
+  if (!slices.spill) return Status::Ok();
+  const int band = slices.spill->band_points();
+  const int first = (p / band) * band;
+  return slices.spill->LoadBand(first, std::min(band, slices.num_points() - first));
 }
 
 Status DmfSliceSet::Check() const {
@@ -82,8 +111,14 @@ Status DmfSliceSet::Check() const {
   if (num_dots() < 16) {
     return Status::Error("slice set: " + std::to_string(num_dots()) + " dots; the fit needs at least 4 x 4");
   }
-  if (value.size() != static_cast<size_t>(num_points()) * num_dots()) return Status::Error("slice set: value size");
-  if (!sigma.empty() && sigma.size() != value.size()) return Status::Error("slice set: sigma size");
+  if (spill) {
+    if (spill->num_points() != num_points() || spill->num_dots() != num_dots() || !value.empty()) {
+      return Status::Error("slice set: the spill's size does not match the grid");
+    }
+  } else {
+    if (value.size() != static_cast<size_t>(num_points()) * num_dots()) return Status::Error("slice set: value size");
+    if (!sigma.empty() && sigma.size() != value.size()) return Status::Error("slice set: sigma size");
+  }
   if (static_cast<int>(train.size()) != num_dots()) return Status::Error("slice set: train mask size");
   if (static_cast<int>(point_status.size()) != num_points()) return Status::Error("slice set: point status size");
   for (const auto& p : dot_positions) {
@@ -150,7 +185,7 @@ void PoolSplitHalfSigmas(int width, int height, int num_threads, std::vector<Dmf
   ParallelFor(height, num_threads, [&](int y) {
     for (int x = 0; x < width; ++x) {
       DmfPointFit& f = (*fits)[y * width + x];
-      if (f.log_ndf.empty()) continue;
+      if (!f.HasNdf()) continue;
       double sum_alpha = 0, sum_roughness = 0;
       int n = 0;
       for (int r = 0; r <= max_radius && n < min_samples; ++r) {
@@ -212,6 +247,40 @@ Image DmfMaps::ToImage(const EquivalentRoughnessOptions& roughness_options) cons
   return image;
 }
 
+namespace {
+
+// Eq. 20 for the NDF: D_i = sum_j w_ij D_j over point p's neighbouring representatives with a
+// fitted NDF and k_s > 0, normalised by the weights used; ln of it (floored at 1e-6) into
+// *log_ndf. Returns the weight sum (0: no usable neighbour, *log_ndf untouched).
+double InterpolateLogNdf(const std::vector<DmfPointFit>& fits, const DmfClustering& c, int p, int num_cells,
+                         std::vector<double>* log_ndf) {
+  std::vector<double> d(num_cells, 0.0);
+  double weight_sum = 0;
+  for (int k = 0; k < c.num_neighbors; ++k) {
+    const int j = c.neighbors[static_cast<size_t>(p) * c.num_neighbors + k];
+    const double w = c.weights[static_cast<size_t>(p) * c.num_neighbors + k];
+    if (j < 0 || w <= 0) continue;
+    const DmfPointFit& rep = fits[c.representatives[j]];
+    if (rep.log_ndf.empty() || !(rep.k_s > 0)) continue;
+    for (int cell = 0; cell < num_cells; ++cell) d[cell] += w * std::exp(rep.log_ndf[cell]);
+    weight_sum += w;
+  }
+  if (!(weight_sum > 0)) return 0;
+  log_ndf->resize(num_cells);
+  for (int cell = 0; cell < num_cells; ++cell) (*log_ndf)[cell] = std::log(std::max(d[cell] / weight_sum, 1e-6));
+  return weight_sum;
+}
+
+}  // namespace
+
+DmfPointFit DmfMaps::FitWithNdf(int p) const {
+  DmfPointFit f = fits[p];
+  if (f.log_ndf.empty() && f.ndf_interpolated) {
+    InterpolateLogNdf(fits, clustering, p, ndf_resolution * ndf_resolution, &f.log_ndf);
+  }
+  return f;
+}
+
 Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& options, DmfMaps* maps) {
   std::string error;
   if (!options.Check(&error)) return Status::Error("dmf fit options: " + error);
@@ -219,6 +288,9 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   const auto start = std::chrono::steady_clock::now();
   const DmfNdfGrid grid(options.point.ndf_resolution);
   const int np = slices.num_points();
+  // Streamed (issue #29): every stage below visits the points band by band (ForEachPointBand);
+  // the shapes are computed again per stage instead of kept, and interpolated NDFs are not kept.
+  const bool streamed = slices.spill != nullptr;
   maps->width = slices.width;
   maps->height = slices.height;
   maps->ndf_resolution = grid.n();
@@ -226,45 +298,92 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   maps->fits.assign(np, DmfPointFit());
   maps->num_fitted = 0;
   maps->clustering = DmfClustering();
+  maps->interpolated_ndfs_stored = !streamed;
 
   // Diffuse separation (Eq. 14) and the slice shapes the clustering compares.
   auto t = std::chrono::steady_clock::now();
   std::vector<double> rho_d(np, 0);
   std::vector<uint8_t> fit_me(np, 0);
-  Eigen::MatrixXf shapes;
+  Eigen::MatrixXf shapes;  // In memory only: every point's shape.
   // Shapes on one grid of u = i_xy + o_xy for every point (fit/dmf_slice_shape.h), as fine as
   // the dot grid, spanning what the sample's central point sees.
   SliceShapeGrid shape_grid;
   if (options.cluster) {
-    shape_grid = MakeSliceShapeGrid(slices.Slice((slices.height / 2) * slices.width + slices.width / 2),
-                                    std::max(slices.dots_nx, slices.dots_ny));
-    shapes.setZero(np, shape_grid.num_nodes());
+    const int centre = (slices.height / 2) * slices.width + slices.width / 2;
+    THINSLAB_RETURN_IF_ERROR(LoadPointBandOf(slices, centre));
+    shape_grid = MakeSliceShapeGrid(slices.Slice(centre), std::max(slices.dots_nx, slices.dots_ny));
+    if (!streamed) shapes.setZero(np, shape_grid.num_nodes());
   }
-  ParallelFor(np, options.num_threads, [&](int p) {
-    maps->fits[p].status = static_cast<DmfStatus>(slices.point_status[p]);
-    if (slices.point_status[p] != static_cast<uint8_t>(DmfStatus::kOk)) return;
-    const DmfSlice slice = slices.Slice(p);
-    rho_d[p] = slice.rho_d;
-    maps->fits[p].rho_d = slice.rho_d;
-    const DmfStatus precheck = PrecheckSlice(slice, options.point);
-    if (precheck != DmfStatus::kOk) {
-      maps->fits[p].status = precheck;
-      return;
-    }
-    fit_me[p] = 1;
-    if (options.cluster) {
-      Eigen::VectorXf shape(shape_grid.num_nodes());
-      AlignedSliceShape(slice, shape_grid, shape.data());
-      shapes.row(p) = shape.transpose();
-    }
-  });
+  THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
+    ParallelFor(count, options.num_threads, [&](int k) {
+      const int p = first + k;
+      maps->fits[p].status = static_cast<DmfStatus>(slices.point_status[p]);
+      if (slices.point_status[p] != static_cast<uint8_t>(DmfStatus::kOk)) return;
+      const DmfSlice slice = slices.Slice(p);
+      rho_d[p] = slice.rho_d;
+      maps->fits[p].rho_d = slice.rho_d;
+      const DmfStatus precheck = PrecheckSlice(slice, options.point);
+      if (precheck != DmfStatus::kOk) {
+        maps->fits[p].status = precheck;
+        return;
+      }
+      fit_me[p] = 1;
+      if (options.cluster && !streamed) {
+        Eigen::VectorXf shape(shape_grid.num_nodes());
+        AlignedSliceShape(slice, shape_grid, shape.data());
+        shapes.row(p) = shape.transpose();
+      }
+    });
+    return Status::Ok();
+  }));
   maps->timings.diffuse_s = Seconds(t);
 
   // Which points are fitted directly.
   std::vector<int> direct;
   t = std::chrono::steady_clock::now();
   if (options.cluster) {
-    maps->clustering = ClusterSlices(shapes, fit_me, options.clustering);
+    DmfShapeClusterer clusterer(fit_me, options.clustering);
+    const std::vector<int>& sample = clusterer.pca_sample();
+    const int nodes = shape_grid.num_nodes();
+    Eigen::MatrixXf sample_shapes(sample.size(), nodes);
+    if (!streamed) {
+      for (size_t s = 0; s < sample.size(); ++s) sample_shapes.row(s) = shapes.row(sample[s]);
+      clusterer.FitProjection(sample_shapes);
+      ParallelFor(np, options.num_threads, [&](int p) {
+        if (fit_me[p]) clusterer.Project(p, shapes, p);
+      });
+      shapes = Eigen::MatrixXf();
+    } else {
+      // The subsample's shapes, then every point's projection, one band at a time.
+      std::vector<int> sample_row(np, -1);
+      for (size_t s = 0; s < sample.size(); ++s) sample_row[sample[s]] = static_cast<int>(s);
+      THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
+        ParallelFor(count, options.num_threads, [&](int k) {
+          const int p = first + k;
+          if (sample_row[p] < 0) return;
+          Eigen::VectorXf shape(nodes);
+          AlignedSliceShape(slices.Slice(p), shape_grid, shape.data());
+          sample_shapes.row(sample_row[p]) = shape.transpose();
+        });
+        return Status::Ok();
+      }));
+      clusterer.FitProjection(sample_shapes);
+      sample_shapes = Eigen::MatrixXf();
+      Eigen::MatrixXf band_shapes;
+      THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
+        band_shapes.setZero(count, nodes);
+        ParallelFor(count, options.num_threads, [&](int k) {
+          const int p = first + k;
+          if (!fit_me[p]) return;
+          Eigen::VectorXf shape(nodes);
+          AlignedSliceShape(slices.Slice(p), shape_grid, shape.data());
+          band_shapes.row(k) = shape.transpose();
+          clusterer.Project(p, band_shapes, k);
+        });
+        return Status::Ok();
+      }));
+    }
+    maps->clustering = clusterer.Cluster();
     direct = maps->clustering.representatives;
   } else {
     for (int p = 0; p < np; ++p) {
@@ -276,27 +395,36 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   t = std::chrono::steady_clock::now();
   ProgressTracker progress(options.progress, "fit dmf: point fits (Dai Eqs. 14-19)",
                            static_cast<int64_t>(direct.size()));
-  const bool finished = ParallelFor(
-      static_cast<int>(direct.size()), options.num_threads,
-      [&](int k) {
-        const int p = direct[k];
-        const DmfSlice slice = slices.Slice(p);
-        DmfPointFit& fit = maps->fits[p];
-        fit = FitDualMicrofacetPoint(slice, grid, options.point);
-        if (!options.split_half || fit.log_ndf.empty()) return;
-        DmfPointFit halves[2];
-        for (int h = 0; h < 2; ++h) {
-          DmfSlice half = slice;
-          half.train = SplitTrainingHalf(slice.train, slices.dots_nx, h);
-          halves[h] = FitDualMicrofacetPoint(half, grid, options.point);
-          if (halves[h].log_ndf.empty()) return;
-        }
-        fit.split_fitted = true;
-        fit.split_alpha_difference = halves[0].alpha - halves[1].alpha;
-        fit.split_roughness_difference = halves[0].roughness.roughness - halves[1].roughness.roughness;
-      },
-      &progress);
-  if (!finished) return Status::Error("FitDualMicrofacetMaps: cancelled");
+  auto fit_direct = [&](int p) {
+    const DmfSlice slice = slices.Slice(p);
+    DmfPointFit& fit = maps->fits[p];
+    fit = FitDualMicrofacetPoint(slice, grid, options.point);
+    if (!options.split_half || fit.log_ndf.empty()) return;
+    DmfPointFit halves[2];
+    for (int h = 0; h < 2; ++h) {
+      DmfSlice half = slice;
+      half.train = SplitTrainingHalf(slice.train, slices.dots_nx, h);
+      halves[h] = FitDualMicrofacetPoint(half, grid, options.point);
+      if (halves[h].log_ndf.empty()) return;
+    }
+    fit.split_fitted = true;
+    fit.split_alpha_difference = halves[0].alpha - halves[1].alpha;
+    fit.split_roughness_difference = halves[0].roughness.roughness - halves[1].roughness.roughness;
+  };
+  int64_t fitted = 0;
+  THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
+    std::vector<int> in_band;
+    for (int p : direct) {
+      if (p >= first && p < first + count) in_band.push_back(p);
+    }
+    if (!ParallelFor(
+            static_cast<int>(in_band.size()), options.num_threads, [&](int k) { fit_direct(in_band[k]); }, &progress,
+            fitted)) {
+      return Status::Error("FitDualMicrofacetMaps: cancelled");
+    }
+    fitted += static_cast<int64_t>(in_band.size());
+    return Status::Ok();
+  }));
   maps->num_fitted = static_cast<int>(direct.size());
   maps->timings.representative_fit_s = Seconds(t);
 
@@ -306,72 +434,73 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     const DmfClustering& c = maps->clustering;
     std::vector<uint8_t> is_rep(np, 0);
     for (int p : c.representatives) is_rep[p] = 1;
-    ParallelFor(np, options.num_threads, [&](int p) {
-      if (!fit_me[p] || is_rep[p]) return;
-      DmfPointFit f;
-      f.rho_d = rho_d[p];
-      f.alpha = 0;
-      f.smith_alpha = 0;
-      std::vector<double> d(grid.num_cells(), 0.0);
-      double weight_sum = 0, transmittance_per_k_s = 0;
-      for (int k = 0; k < c.num_neighbors; ++k) {
-        const int j = c.neighbors[static_cast<size_t>(p) * c.num_neighbors + k];
-        const double w = c.weights[static_cast<size_t>(p) * c.num_neighbors + k];
-        if (j < 0 || w <= 0) continue;
-        const DmfPointFit& rep = maps->fits[c.representatives[j]];
-        if (rep.log_ndf.empty() || !(rep.k_s > 0)) continue;
-        f.alpha += w * rep.alpha;
-        f.smith_alpha += w * rep.smith_alpha;
-        f.measured_ndf_fraction += w * rep.measured_ndf_fraction;
-        f.roughness.ggx_alpha += w * rep.roughness.ggx_alpha;
-        f.roughness.beckmann_alpha += w * rep.roughness.beckmann_alpha;
-        f.roughness.ggx_misfit += w * rep.roughness.ggx_misfit;
-        f.roughness.beckmann_misfit += w * rep.roughness.beckmann_misfit;
-        // The refracted part of the transmittance is linear in k_s for a fixed normalised NDF:
-        // each representative's, rescaled to this point's k_s and rho_d below (the integral is
-        // not evaluated per interpolated point: it would cost about as much as the
-        // interpolation). pi rho_d is the diffuse term's share.
-        transmittance_per_k_s += w * (rep.transmittance - kPi * rep.rho_d) / rep.k_s;
-        for (int cell = 0; cell < grid.num_cells(); ++cell) d[cell] += w * std::exp(rep.log_ndf[cell]);
-        weight_sum += w;
-      }
-      if (!(weight_sum > 0)) {
-        f.status = DmfStatus::kNoLobe;
-        f.alpha = 0.5;
-        f.smith_alpha = options.point.initial_smith_alpha;
+    THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
+      ParallelFor(count, options.num_threads, [&](int i) {
+        const int p = first + i;
+        if (!fit_me[p] || is_rep[p]) return;
+        DmfPointFit f;
+        f.rho_d = rho_d[p];
+        f.alpha = 0;
+        f.smith_alpha = 0;
+        double weight_sum = 0, transmittance_per_k_s = 0;
+        for (int k = 0; k < c.num_neighbors; ++k) {
+          const int j = c.neighbors[static_cast<size_t>(p) * c.num_neighbors + k];
+          const double w = c.weights[static_cast<size_t>(p) * c.num_neighbors + k];
+          if (j < 0 || w <= 0) continue;
+          const DmfPointFit& rep = maps->fits[c.representatives[j]];
+          if (rep.log_ndf.empty() || !(rep.k_s > 0)) continue;
+          f.alpha += w * rep.alpha;
+          f.smith_alpha += w * rep.smith_alpha;
+          f.measured_ndf_fraction += w * rep.measured_ndf_fraction;
+          f.roughness.ggx_alpha += w * rep.roughness.ggx_alpha;
+          f.roughness.beckmann_alpha += w * rep.roughness.beckmann_alpha;
+          f.roughness.ggx_misfit += w * rep.roughness.ggx_misfit;
+          f.roughness.beckmann_misfit += w * rep.roughness.beckmann_misfit;
+          // The refracted part of the transmittance is linear in k_s for a fixed normalised NDF:
+          // each representative's, rescaled to this point's k_s and rho_d below (the integral is
+          // not evaluated per interpolated point: it would cost about as much as the
+          // interpolation). pi rho_d is the diffuse term's share.
+          transmittance_per_k_s += w * (rep.transmittance - kPi * rep.rho_d) / rep.k_s;
+          weight_sum += w;
+        }
+        if (!(weight_sum > 0)) {
+          f.status = DmfStatus::kNoLobe;
+          f.alpha = 0.5;
+          f.smith_alpha = options.point.initial_smith_alpha;
+          maps->fits[p] = f;
+          return;
+        }
+        f.alpha /= weight_sum;
+        f.smith_alpha /= weight_sum;
+        f.measured_ndf_fraction /= weight_sum;
+        f.roughness.ggx_alpha /= weight_sum;
+        f.roughness.beckmann_alpha /= weight_sum;
+        f.roughness.ggx_misfit /= weight_sum;
+        f.roughness.beckmann_misfit /= weight_sum;
+        DecideFamily(options.point.roughness, &f.roughness);
+        InterpolateLogNdf(maps->fits, c, p, grid.num_cells(), &f.log_ndf);
+        f.ndf_interpolated = true;
+        const DmfSlice slice = slices.Slice(p);
+        int used = 0;
+        f.k_s = std::exp(FitLogScale(slice, f, grid, options.point, &used));
+        f.num_used = used;
+        f.log_rms_residual = LogRmsResidual(slice, f, grid, options.point);
+        f.transmittance = kPi * f.rho_d + f.k_s * transmittance_per_k_s / weight_sum;
+        // An interpolated NDF is as measured as its representatives' (weighted).
+        if (used == 0) {
+          f.status = DmfStatus::kNoLobe;
+        } else if (options.point.Undersampled(f.measured_ndf_fraction, slice)) {
+          f.status = DmfStatus::kUndersampled;
+        } else if (options.point.Unphysical(f.transmittance, f.k_s)) {
+          f.status = DmfStatus::kUnphysical;
+        } else {
+          f.status = DmfStatus::kInterpolated;
+        }
+        if (streamed) std::vector<double>().swap(f.log_ndf);  // FitWithNdf rebuilds it.
         maps->fits[p] = f;
-        return;
-      }
-      f.alpha /= weight_sum;
-      f.smith_alpha /= weight_sum;
-      f.measured_ndf_fraction /= weight_sum;
-      f.roughness.ggx_alpha /= weight_sum;
-      f.roughness.beckmann_alpha /= weight_sum;
-      f.roughness.ggx_misfit /= weight_sum;
-      f.roughness.beckmann_misfit /= weight_sum;
-      DecideFamily(options.point.roughness, &f.roughness);
-      f.log_ndf.resize(grid.num_cells());
-      for (int cell = 0; cell < grid.num_cells(); ++cell) {
-        f.log_ndf[cell] = std::log(std::max(d[cell] / weight_sum, 1e-6));
-      }
-      const DmfSlice slice = slices.Slice(p);
-      int used = 0;
-      f.k_s = std::exp(FitLogScale(slice, f, grid, options.point, &used));
-      f.num_used = used;
-      f.log_rms_residual = LogRmsResidual(slice, f, grid, options.point);
-      f.transmittance = kPi * f.rho_d + f.k_s * transmittance_per_k_s / weight_sum;
-      // An interpolated NDF is as measured as its representatives' (weighted).
-      if (used == 0) {
-        f.status = DmfStatus::kNoLobe;
-      } else if (options.point.Undersampled(f.measured_ndf_fraction, slice)) {
-        f.status = DmfStatus::kUndersampled;
-      } else if (options.point.Unphysical(f.transmittance, f.k_s)) {
-        f.status = DmfStatus::kUnphysical;
-      } else {
-        f.status = DmfStatus::kInterpolated;
-      }
-      maps->fits[p] = f;
-    });
+      });
+      return Status::Ok();
+    }));
   }
   maps->timings.interpolation_s = Seconds(t);
   if (options.split_half) PoolSplitHalfSigmas(maps->width, maps->height, options.num_threads, &maps->fits);
@@ -387,6 +516,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
                        : ": not fitted directly in the maps (clustered run: interpolated, Eqs. 20-22; or no lobe); its own fit:\n");
     DmfPointFitOptions traced = options.point;
     traced.trace = &out;
+    THINSLAB_RETURN_IF_ERROR(LoadPointBandOf(slices, p));
     const DmfPointFit alone = FitDualMicrofacetPoint(slices.Slice(p), grid, traced);
     const DmfPointFit& in_maps = maps->fits[p];
     out << "  alone: status " << DmfStatusName(alone.status) << "; in the maps: status " << DmfStatusName(in_maps.status)
@@ -398,8 +528,8 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
 }
 
 double DmfHeldOutError(const DmfSliceSet& slices, const DmfMaps& maps, int p, double lobe_fraction) {
-  const DmfPointFit& fit = maps.fits[p];
-  if (fit.log_ndf.empty()) return -1;
+  if (!maps.fits[p].HasNdf()) return -1;
+  const DmfPointFit fit = maps.FitWithNdf(p);
   const DmfNdfGrid grid(maps.ndf_resolution);
   const DmfSlice slice = slices.Slice(p);
   return HeldOutRelativeRms(slice, lobe_fraction, [&](const Eigen::Vector3d& i, const Eigen::Vector3d& o) {

@@ -8,6 +8,8 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -17,6 +19,7 @@
 #include "thinslab/core/status.h"
 #include "thinslab/fit/dmf_clustering.h"
 #include "thinslab/fit/dmf_point_fit.h"
+#include "thinslab/fit/dmf_slice_spill.h"
 
 namespace thinslab {
 
@@ -53,12 +56,19 @@ struct DmfSliceSet {
   double eta = 1.5;
   std::vector<float> value;   // R [1/sr], point-major: value[p * num_dots + q].
   std::vector<float> sigma;   // Its standard deviation, same layout (empty: unknown).
+  // Set when the matrix is on disk (issue #29, over the memory budget): `value` and `sigma`
+  // are empty and only the band of points the spill has loaded can be read
+  // (ForEachPointBand; PointValues and Slice CHECK it).
+  std::shared_ptr<DmfSliceSpill> spill;
   std::vector<uint8_t> train; // Per dot: 1 fitted, 0 held out.
   std::vector<uint8_t> point_status;  // Per point: DmfStatus from processing (kOk to fit).
   DmfValidationDots validation;       // Empty when the capture has no validation dot frames.
 
   int num_points() const { return width * height; }
   int num_dots() const { return static_cast<int>(dot_positions.size()); }
+  // Point p's num_dots() values and sigmas (sigmas nullptr when unknown).
+  const float* PointValues(int p) const;
+  const float* PointSigmas(int p) const;
   Eigen::Vector3d PointPosition(int p) const;
   // SlabLightEntryPoint of point p.
   Eigen::Vector3d LightEntryPoint(int p) const;
@@ -66,6 +76,11 @@ struct DmfSliceSet {
   DmfSlice Slice(int p) const;
   Status Check() const;
 };
+
+// body(first, count) for consecutive bands of points that together cover the grid: the whole
+// grid at once when the slices are in memory, else each band loaded from the spill in turn
+// (points outside the band cannot be read during its call). Stops at the first error.
+Status ForEachPointBand(const DmfSliceSet& slices, const std::function<Status(int first, int count)>& body);
 
 // The sample frame -> optical frame of optics/dual_microfacet_btdf.h: the 180-degree rotation
 // about x, so that light from the monitor (z < 0) arrives from +z and the camera lies on -z.
@@ -129,6 +144,11 @@ struct DmfMaps {
   int num_fitted = 0;             // Points fitted directly (representatives or all).
   DmfClustering clustering;       // Empty unless clustered.
   DmfMapTimings timings;
+  // False when the fit streamed its slices (issue #29): interpolated points then keep no
+  // log_ndf (N*N doubles each) and FitWithNdf rebuilds it from the representatives.
+  bool interpolated_ndfs_stored = true;
+  // Point p's fit with its log_ndf filled in (a copy).
+  DmfPointFit FitWithNdf(int p) const;
   // Channels top_face_weight (Dai's alpha), smith_alpha, k_s, rho_d, log_rms_residual (ln RMS of
   // Eq. 15), status, measured_ndf_fraction, transmittance, equivalent_roughness, ndf_family
   // (NdfFamily code), rough_face (RoughFace code of alpha); finite everywhere (defaults where
@@ -136,9 +156,16 @@ struct DmfMaps {
   Image ToImage(const EquivalentRoughnessOptions& roughness_options = EquivalentRoughnessOptions()) const;
 };
 
+// Streams the slices band by band when they are spilled (DmfSliceSet::spill): the same maps
+// as in memory.
 Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& options, DmfMaps* maps);
 
-// Relative RMS error over the held-out in-lobe dots of point p (HeldOutRelativeRms), -1 if none.
+// Loads the band of the spill that holds point p (ForEachPointBand's bands); nothing when the
+// slices are in memory.
+Status LoadPointBandOf(const DmfSliceSet& slices, int p);
+
+// Relative RMS error over the held-out in-lobe dots of point p (HeldOutRelativeRms), -1 if none;
+// p must be loaded (ForEachPointBand).
 double DmfHeldOutError(const DmfSliceSet& slices, const DmfMaps& maps, int p, double lobe_fraction = 0.1);
 
 }  // namespace thinslab

@@ -152,6 +152,10 @@ struct DmfPointFit {
   double k_s = 0;            // Eq. 13 scale [unitless]: integral of the unnormalised D.
   double rho_d = 0;          // [1/sr], copied from the slice.
   std::vector<double> log_ndf;  // ln D per cell (N*N, D normalised: projected integral 1); empty if not fitted.
+  // The NDF was interpolated from representatives (Eq. 20); a map streamed under a memory budget
+  // does not keep it in log_ndf (DmfMaps::FitWithNdf rebuilds it).
+  bool ndf_interpolated = false;
+  bool HasNdf() const { return !log_ndf.empty() || ndf_interpolated; }
   int alpha_iterations = 0;
   // |Eq. 18's alpha - alpha| at the result, D solved there: 0 at an exact fixed point; below
   // alpha_tolerance when the iteration converged; large where Eq. 18 jumps across the result.

@@ -114,8 +114,59 @@ bool DmfProcessingOptions::Check(std::string* error) const {
   else if (!(glass_thickness_m <= 0.05)) e << "glass_thickness_m (--glass-thickness-mm) must be <= 50 mm";
   else if (!(eta == 0 || (eta > 1 && eta <= 4))) e << "eta must be 0 (the manifest's) or in (1, 4], got " << eta;
   else if (std::string pattern_error; !hold_out_pattern.Check(&pattern_error)) e << pattern_error;
+  else if (!(max_memory_bytes >= 0)) e << "max_memory_bytes (--max-memory) must be >= 0 (0 = no budget)";
+  else if (stream_band_points < 0) e << "stream_band_points (--stream-band-points) must be >= 0, got " << stream_band_points;
+  else if ((max_memory_bytes > 0 || stream_band_points > 0) && spill_dir.empty()) {
+    e << "spill_dir: needed with a memory budget";
+  }
+  else if (fit_ndf_resolution < 1) e << "fit_ndf_resolution must be >= 1";
+  else if (!(fit_cluster_fraction > 0 && fit_cluster_fraction <= 1)) e << "fit_cluster_fraction must be in (0, 1]";
   *error = e.str();
   return error->empty();
+}
+
+Status PlanDmfMemory(int num_points, int grid_width, int num_dots, int num_validation_dots, double camera_pixels,
+                     const DmfProcessingOptions& options, DmfMemoryPlan* plan) {
+  // What the chain keeps, in bytes (fit/dmf_map_fit.cc, fit/dmf_clustering.cc):
+  const double np = num_points, nd = num_dots;
+  const double ndf = 8.0 * Sqr(options.fit_ndf_resolution);  // One point's log_ndf (doubles).
+  const double shape = 4.0 * nd;  // A slice shape: about one u-grid node per dot (fit/dmf_slice_shape.h).
+  // Per point whatever the mode: its fit and clustering entries, the map images, the
+  // rectifier's sub-samples, the validation dots' values and the stages' per-point vectors.
+  const double per_point = sizeof(DmfPointFit) + 4 * (4 + 8) + 24 * 4 + 16 * 4 +
+                           Sqr(options.supersample) * 8.0 + 8.0 * num_validation_dots + 64;
+  // Whatever the grid: the process itself (about 100 MiB resident for a tiny fit: code, libraries,
+  // the capture's manifest), a bracket's camera frames and their HDR images (about 64 bytes
+  // per camera pixel), the PCA subsample's shapes.
+  const double fixed = 128.0 * (1 << 20) + 64 * camera_pixels + 20000 * shape;
+  const double representatives = std::min(np, std::max(64.0, options.fit_cluster_fraction * np));
+  plan->in_memory_bytes = fixed + np * (8 * nd + shape + ndf + per_point);
+  plan->spill_file_bytes = 8 * np * nd;
+  plan->streamed = options.stream_band_points > 0 ||
+                   (options.max_memory_bytes > 0 && plan->in_memory_bytes > options.max_memory_bytes);
+  if (!plan->streamed) {
+    plan->band_points = num_points;
+    plan->streamed_bytes = plan->in_memory_bytes;
+    return Status::Ok();
+  }
+  // Streamed: a band's values, sigmas and shapes in memory; the representatives' NDFs kept.
+  const double resident = fixed + np * per_point + representatives * ndf;
+  const double per_band_point = 8 * nd + shape + 4;
+  double band = options.max_memory_bytes > 0 ? std::floor((options.max_memory_bytes - resident) / per_band_point) : np;
+  if (options.stream_band_points > 0) band = std::max<double>(grid_width, std::min<double>(band, options.stream_band_points));
+  char text[400];
+  if (band < grid_width) {
+    std::snprintf(text, sizeof(text),
+                  "--max-memory %.2f GiB is too small for %d points x %d dots: streamed, the fit keeps %.2f GiB and a "
+                  "band of one grid row (%d points) needs %.2f GiB more",
+                  options.max_memory_bytes / double(1u << 30), num_points, num_dots, resident / double(1u << 30),
+                  grid_width, grid_width * per_band_point / double(1u << 30));
+    return Status::Error(text);
+  }
+  // Whole grid rows, so that a band is a strip of the map.
+  plan->band_points = static_cast<int>(std::min(np, std::floor(band / grid_width) * grid_width));
+  plan->streamed_bytes = resident + plan->band_points * per_band_point;
+  return Status::Ok();
 }
 
 namespace {
@@ -287,11 +338,24 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   // Refused before the slices are allocated: about 16 bytes per point and dot (Eq. 12 slices
   // and their variances in float) plus 4 KiB per point of fit state (measured: 26 KB per point
   // with 40 x 40 dots, 8 KB with 16 x 16; docs/benchmarks.md).
-  const double points = static_cast<double>(grid.width_px) * grid.height_px;
+  // Validation dots (FrameRecord::validation): measured the same way, placed from the fitted
+  // monitor geometry with the median L_q (they are not in the all-dots grid), never fitted.
+  std::map<std::pair<double, double>, std::vector<const FrameRecord*>> validation_by_dot;
+  for (const FrameRecord* f : session.ValidationFrames("dot", sample_state)) {
+    if (f->camera_id != camera.id || !f->light.dot_px) continue;
+    validation_by_dot[{f->light.dot_px->y(), f->light.dot_px->x()}].push_back(f);
+  }
+  const std::string grid_text = manifest + ": the " + std::to_string(grid.width_px) + " x " +
+                                std::to_string(grid.height_px) + " point grid of " + std::to_string(displayed.size()) +
+                                " dots (--pitch-mm or rig.sample.pixel_pitch_m)";
+  THINSLAB_RETURN_IF_ERROR(PlanDmfMemory(grid.width_px * grid.height_px, grid.width_px,
+                                         static_cast<int>(displayed.size()), static_cast<int>(validation_by_dot.size()),
+                                         static_cast<double>(camera.width_px) * camera.height_px, options,
+                                         &report->memory)
+                               .WithContext(grid_text));
   THINSLAB_RETURN_IF_ERROR(CheckMemoryNeed(
-      points * (16.0 * static_cast<double>(displayed.size()) + 4096.0),
-      manifest + ": the " + std::to_string(grid.width_px) + " x " + std::to_string(grid.height_px) + " point grid of " +
-          std::to_string(displayed.size()) + " dots (--pitch-mm or rig.sample.pixel_pitch_m)"));
+      report->memory.streamed_bytes,
+      grid_text + (report->memory.streamed ? "" : " in memory (--max-memory streams it from disk)")));
   // Eq. 12 gives each grid point one lighting direction per dot; averaging a coarse cell
   // (8 mm at 40 mm from the monitor spans +-6 degrees) would blur the lobe by that spread, so
   // the cell is sampled at supersample^2 points instead (docs/models/dual_microfacet_fit.md).
@@ -318,11 +382,23 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   slices->eta = options.eta > 0 ? options.eta : session.rig.sample.glass_ior;
   report->glass_thickness_m = slices->glass_thickness_m;
   const int np = slices->num_points(), nd = static_cast<int>(displayed.size());
-  slices->value.assign(static_cast<size_t>(np) * nd, 0.0f);
-  slices->sigma.assign(static_cast<size_t>(np) * nd, 0.0f);
+  std::vector<float> column_value, column_sigma;  // Streamed: one dot's column before it goes to disk.
+  if (report->memory.streamed) {
+    std::unique_ptr<DmfSliceSpill> spill;
+    THINSLAB_RETURN_IF_ERROR(DmfSliceSpill::Create(options.spill_dir, np, nd, report->memory.band_points, &spill));
+    slices->spill = std::move(spill);
+    slices->value.clear();
+    slices->sigma.clear();
+    column_value.assign(np, 0.0f);
+    column_sigma.assign(np, 0.0f);
+    report->slice_bytes = slices->spill->BandBytes();
+  } else {
+    slices->value.assign(static_cast<size_t>(np) * nd, 0.0f);
+    slices->sigma.assign(static_cast<size_t>(np) * nd, 0.0f);
+    report->slice_bytes = (slices->value.size() + slices->sigma.size()) * sizeof(float);
+  }
   slices->train = HoldOutTrainMask(nx, ny, options.hold_out, options.hold_out_pattern);
   slices->point_status.assign(np, static_cast<uint8_t>(DmfStatus::kOk));
-  report->slice_bytes = (slices->value.size() + slices->sigma.size()) * sizeof(float);
 
   // 2-3. One dot at a time: merge, rectify, Eq. 12.
   t = std::chrono::steady_clock::now();
@@ -368,23 +444,19 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     if (!progress.Report(q)) return Status::Error("PrepareDotScanSlices: cancelled");
     const DotRecord& dot = geometry.dots[q];
     const double l_q = dot.saturated || !dot.measured() ? median_radiance : dot.radiance_dn_per_us;
+    const bool streamed = slices->spill != nullptr;
     THINSLAB_RETURN_IF_ERROR(measure(frames, dot.position_in_sample_m, l_q, DotName(displayed[q]),
                                      q % check_stride == 0, [&](int p, double value, double sigma, bool sat) {
-                                       const size_t k = static_cast<size_t>(p) * nd + q;
-                                       slices->value[k] = static_cast<float>(value);
-                                       slices->sigma[k] = static_cast<float>(sigma);
+                                       const size_t k = streamed ? p : static_cast<size_t>(p) * nd + q;
+                                       (streamed ? column_value : slices->value)[k] = static_cast<float>(value);
+                                       (streamed ? column_sigma : slices->sigma)[k] = static_cast<float>(sigma);
                                        if (sat) ++saturated_dots[p];
                                      }));
+    if (streamed) THINSLAB_RETURN_IF_ERROR(slices->spill->WriteColumn(q, column_value.data(), column_sigma.data()));
     ++q;
   }
   progress.Report(q);
-  // Validation dots (FrameRecord::validation): measured the same way, placed from the fitted
-  // monitor geometry with the median L_q (they are not in the all-dots grid), never fitted.
-  std::map<std::pair<double, double>, std::vector<const FrameRecord*>> validation_by_dot;
-  for (const FrameRecord* f : session.ValidationFrames("dot", sample_state)) {
-    if (f->camera_id != camera.id || !f->light.dot_px) continue;
-    validation_by_dot[{f->light.dot_px->y(), f->light.dot_px->x()}].push_back(f);
-  }
+  // Validation dots: see validation_by_dot above.
   DmfValidationDots& validation = slices->validation;
   const size_t nv = validation_by_dot.size();
   validation.value.assign(static_cast<size_t>(np) * nv, 0.0f);

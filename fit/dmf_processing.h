@@ -57,8 +57,33 @@ struct DmfProcessingOptions {
   // Reports the dots' frames as they are merged into slices (Eq. 12); returning false cancels
   // (core/progress.h).
   ProgressCallback progress;
+  // Memory budget of the whole chain, processing and fit (issue #29, `fit dmf --max-memory`);
+  // 0 = none. When the slice matrix and the fit's per-point state would exceed it
+  // (PlanDmfMemory), the matrix goes to an unlinked file in `spill_dir` and the fit streams it
+  // in bands of points sized to the budget.
+  double max_memory_bytes = 0;
+  std::string spill_dir;
+  // > 0: stream whatever the budget, in bands of at most this many points (whole grid rows; at
+  // least one row). For checking the streamed path on small grids.
+  int stream_band_points = 0;
+  int fit_ndf_resolution = 32;   // Of the fit that follows (its NDFs' memory).
+  double fit_cluster_fraction = 0.01;  // Of the fit that follows (1 = every point fitted directly).
   bool Check(std::string* error) const;
 };
+
+// How the chain fits in the memory budget: in memory, or streamed in bands of `band_points`.
+// Estimates in bytes, from the sizes of what the chain keeps (docs/benchmarks.md compares them
+// with the measured peaks).
+struct DmfMemoryPlan {
+  bool streamed = false;
+  int band_points = 0;
+  double in_memory_bytes = 0;   // Estimated peak of the whole chain in memory.
+  double streamed_bytes = 0;    // Estimated peak streamed, with the chosen band.
+  double spill_file_bytes = 0;  // On disk when streamed.
+};
+// Error when even a band of one grid row does not fit the budget.
+Status PlanDmfMemory(int num_points, int grid_width, int num_dots, int num_validation_dots, double camera_pixels,
+                     const DmfProcessingOptions& options, DmfMemoryPlan* plan);
 
 struct DmfProcessingReport {
   int num_dots = 0, grid_nx = 0, grid_ny = 0, num_frames = 0, num_exposures = 0;
@@ -98,7 +123,8 @@ struct DmfProcessingReport {
   int dots_found_by_grid_prior = 0;  // Measured where the matched grid puts them (DotGeometryResult).
   int saturated_points = 0, outside_points = 0;
   double geometry_s = 0, merge_s = 0, total_s = 0;
-  size_t slice_bytes = 0;  // Memory of the slice matrix.
+  size_t slice_bytes = 0;  // Memory of the slice matrix (streamed: of one band).
+  DmfMemoryPlan memory;    // In memory or streamed (spill file size, band).
   SessionCalibration calibration;  // What was applied.
   std::string dot_geometry_source;  // The all-dots frame used, or the rig.json file.
   CaptureCompleteness capture;      // What was read.
@@ -106,6 +132,8 @@ struct DmfProcessingReport {
 };
 
 inline constexpr double kMaxDarkFractionOfRange = 0.2;
+// `fit dmf --max-memory` default (issue #29).
+inline constexpr double kDefaultMaxMemoryGiB = 2.0;
 inline constexpr int kDotsExposureChecked = 16;
 
 // Dot geometry and L_q from the capture's all-dots frames without the sample (Dai et al. Sec. 4.1):

@@ -233,9 +233,27 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   std::vector<std::pair<int, int>> pixels;
   THINSLAB_RETURN_IF_ERROR(ParsePixels(run.ndf_pixels, &pixels));
 
+  // The memory budget (issue #29): over it, the slices go to an unlinked file beside the output.
+  run.processing.fit_ndf_resolution = run.fit.point.ndf_resolution;
+  run.processing.fit_cluster_fraction = run.fit.cluster ? run.fit.clustering.fraction : 1.0;
+  if ((run.processing.max_memory_bytes > 0 || run.processing.stream_band_points > 0) && run.processing.spill_dir.empty()) {
+    run.processing.spill_dir = out.path();
+  }
   DmfSliceSet slices;
   DmfProcessingReport processing;
   THINSLAB_RETURN_IF_ERROR(PrepareDotScanSlices(session_dir, run.processing, &slices, &processing));
+  if (processing.memory.streamed && run.ladder) {
+    char need[64];
+    std::snprintf(need, sizeof(need), "%.1f", processing.memory.in_memory_bytes / double(1u << 30));
+    return Status::Error(std::string("--ladder: not available on a fit streamed from disk (this grid needs about ") +
+                         need + " GiB in memory; --max-memory " + need + " or a coarser --pitch-mm)");
+  }
+  if (processing.memory.streamed) {
+    char line[160];
+    std::snprintf(line, sizeof(line), "memory: the slices (%.2f GiB) streamed in bands of %d points",
+                  processing.memory.spill_file_bytes / double(1u << 30), processing.memory.band_points);
+    std::cout << line << " from " << run.processing.spill_dir << "\n";
+  }
   if (processing.dots_placed_from_geometry > 0) {
     std::cout << "dot geometry: " << processing.dots_placed_from_geometry << " of " << processing.num_dots
               << " dots placed from the monitor geometry (outside the camera's view, not found, or "
@@ -295,8 +313,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   Image atlas(tiles_x * n, tiles_y * n, {"D"});
   for (int ty = 0; ty < tiles_y; ++ty) {
     for (int tx = 0; tx < tiles_x; ++tx) {
-      const DmfPointFit& f = maps.fits[(ty * stride) * maps.width + tx * stride];
-      if (f.log_ndf.empty()) continue;
+      const int p = (ty * stride) * maps.width + tx * stride;
+      if (!maps.fits[p].HasNdf()) continue;
+      const DmfPointFit f = maps.FitWithNdf(p);
       for (int cell = 0; cell < n * n; ++cell) atlas.at(tx * n + cell % n, ty * n + cell / n) = std::exp(f.log_ndf[cell]);
     }
   }
@@ -323,7 +342,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   // Pictures: maps (grey where nothing was fitted) and NDFs at the chosen points.
   Image unfitted(maps.width, maps.height);
   for (int p = 0; p < maps.width * maps.height; ++p) {
-    unfitted.data()[p] = maps.fits[p].log_ndf.empty() ? 1.f : 0.f;
+    unfitted.data()[p] = maps.fits[p].HasNdf() ? 0.f : 1.f;
   }
   const struct {
     const char* name;
@@ -364,7 +383,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   // NDF pictures (Dai Fig. 6): fitted on the left; the true face NDF on the right where the
   // capture has ground truth and the point's region has one rough face.
   for (const auto& [x, y] : pixels) {
-    const DmfPointFit& f = maps.fits[y * maps.width + x];
+    const DmfPointFit f = maps.FitWithNdf(y * maps.width + x);
     const Eigen::Vector3d point = slices.PointPosition(y * maps.width + x);
     const DmfTruthFace* face = nullptr;
     for (const DmfTruthRegion& r : truth) {
@@ -396,7 +415,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
 
   std::vector<DmfRegionAccuracy> accuracy;
   if (has_truth) {
-    accuracy = CompareDmfWithTruth(slices, maps, truth);
+    THINSLAB_RETURN_IF_ERROR(CompareDmfWithTruth(slices, maps, truth, 0.5, &accuracy));
     THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "comparison.json"), DmfComparisonJson(accuracy)));
   }
   // Issue #23 section 4: the capture's validation dots, predicted by the tabulated fit.
@@ -404,16 +423,17 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   const std::vector<DmfValidationError> validation =
       EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction);
   // The held-out grid dots (--hold-out), reported with or without the ladder.
-  const std::vector<DmfValidationError> held_out =
-      run.processing.hold_out ? EvaluateHeldOutDots(slices, maps, truth, kValidationLobeFraction)
-                              : std::vector<DmfValidationError>();
+  std::vector<DmfValidationError> held_out;
+  if (run.processing.hold_out) {
+    THINSLAB_RETURN_IF_ERROR(EvaluateHeldOutDots(slices, maps, truth, kValidationLobeFraction, &held_out));
+  }
   std::map<std::string, int> counts;
   for (const DmfPointFit& f : maps.fits) ++counts[DmfStatusName(f.status)];
   // Family, rough face and equivalent roughness over the points whose fit stands (ok, interpolated).
   std::map<std::string, int> families, faces;
   std::vector<double> roughness;
   for (const DmfPointFit& f : maps.fits) {
-    if ((f.status != DmfStatus::kOk && f.status != DmfStatus::kInterpolated) || f.log_ndf.empty()) continue;
+    if ((f.status != DmfStatus::kOk && f.status != DmfStatus::kInterpolated) || !f.HasNdf()) continue;
     ++families[NdfFamilyName(f.roughness.family)];
     ++faces[RoughFaceName(RoughFaceOf(f.alpha, run.fit.point.roughness))];
     roughness.push_back(f.roughness.roughness);
@@ -486,6 +506,12 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   j["calibration"] = CalibrationSummaryJson(processing.calibration);
   j["capture"] = CaptureSummaryJson(processing.capture);
   j["slice_memory_bytes"] = processing.slice_bytes;
+  j["memory"] = {{"max_memory_bytes", run.processing.max_memory_bytes},
+                 {"streamed", processing.memory.streamed},
+                 {"band_points", processing.memory.band_points},
+                 {"estimated_in_memory_bytes", processing.memory.in_memory_bytes},
+                 {"estimated_peak_bytes", processing.memory.streamed_bytes},
+                 {"spill_file_bytes", processing.memory.streamed ? processing.memory.spill_file_bytes : 0.0}};
   j["peak_memory_mib"] = PeakResidentMemoryMiB();
   j["timings_s"] = {{"dot_geometry", processing.geometry_s},
                     {"hdr_merge_rectify_eq12", processing.merge_s},

@@ -1,0 +1,116 @@
+// SPDX-License-Identifier: Apache-2.0
+// Issue #29 item 1 through the binary: `fit dmf` streams its slice matrix from disk in bands of
+// map points when the grid exceeds --max-memory (or --stream-band-points asks for it), and
+// writes the same maps bit for bit: maps.exr, the NDF atlas (interpolated NDFs rebuilt from the
+// representatives), the ground-truth comparison with held-out errors, the validation and
+// held-out predictions; clustered and unclustered. The spill file is never left behind, a
+// budget too small for one band and the ladder on a streamed fit are refused with the reason.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "tests/testing/json_file.h"
+#include "tests/testing/run_ok.h"
+#include "tests/testing/temp_dir.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/file.h"
+
+namespace thinslab {
+namespace {
+
+void ExpectSameExr(const std::string& a, const std::string& b) {
+  Image x, y;
+  ASSERT_TRUE(ReadExr(a, &x).ok()) << a;
+  ASSERT_TRUE(ReadExr(b, &y).ok()) << b;
+  EXPECT_EQ(x.channel_names(), y.channel_names()) << a;
+  ASSERT_EQ(x.data().size(), y.data().size()) << a;
+  size_t differ = 0;
+  for (size_t k = 0; k < x.data().size(); ++k) differ += x.data()[k] != y.data()[k];
+  EXPECT_EQ(differ, 0u) << a << " and " << b << " differ in " << differ << " of " << x.data().size() << " values";
+}
+
+// Everything but the memory figures and timings of the two fits' outputs is the same.
+void ExpectSameFit(const TempDir& dir, const std::string& a, const std::string& b) {
+  ExpectSameExr(dir / (a + "/maps.exr"), dir / (b + "/maps.exr"));
+  ExpectSameExr(dir / (a + "/ndf_atlas.exr"), dir / (b + "/ndf_atlas.exr"));
+  std::string ca, cb;
+  ASSERT_TRUE(ReadFileToString(dir / (a + "/comparison.json"), &ca).ok());
+  ASSERT_TRUE(ReadFileToString(dir / (b + "/comparison.json"), &cb).ok());
+  EXPECT_EQ(ca, cb);
+  const nlohmann::json sa = ReadJsonFile(dir / (a + "/summary.json")), sb = ReadJsonFile(dir / (b + "/summary.json"));
+  for (const char* key :
+       {"status_counts", "validation", "hold_out", "equivalent_ndf", "clustering", "points_fitted_directly"}) {
+    EXPECT_EQ(sa.value(key, nlohmann::json()), sb.value(key, nlohmann::json())) << key;
+  }
+}
+
+TEST(CliDmfStreamed, SameMapsAsInMemoryBudgetHeldNothingLeftBehind) {
+  TempDir dir;
+  const std::string capture = dir / "capture";
+  RunThinslabOk("sim dot-scan " + capture +
+                " --quiet --grid-nx 10 --grid-ny 10 --validation-dots 6 --photons-k 10 --table-bins 24 "
+                "--camera-width-px 240 --camera-height-px 180");
+  const std::string fit = "fit dmf " + capture + " --pitch-mm 2.5 --hold-out true --threads 2";
+  RunThinslabOk(fit + " --out " + (dir / "memory"));
+  // Bands of 4 grid rows (the grid is 32 points wide): the band edges cut through regions.
+  const RunResult streamed = RunThinslabOk(fit + " --stream-band-points 128 --out " + (dir / "streamed"));
+  EXPECT_NE(streamed.output.find("streamed in bands of 128 points"), std::string::npos) << streamed.output;
+  const nlohmann::json memory = ReadJsonFile(dir / "memory/summary.json")["memory"];
+  const nlohmann::json banded = ReadJsonFile(dir / "streamed/summary.json")["memory"];
+  EXPECT_FALSE(memory["streamed"].get<bool>()) << memory.dump();
+  EXPECT_TRUE(banded["streamed"].get<bool>()) << banded.dump();
+  EXPECT_EQ(banded["band_points"], 128) << banded.dump();
+  ExpectSameFit(dir, "memory", "streamed");
+
+  // Unclustered: every point fitted directly, band by band (a coarser grid: 16 x 16 points).
+  const std::string all = "fit dmf " + capture +
+                          " --pitch-mm 5 --hold-out true --threads 2 --cluster-fraction 0 "
+                          "--split-half false";
+  RunThinslabOk(all + " --out " + (dir / "all_memory"));
+  RunThinslabOk(all + " --stream-band-points 48 --out " + (dir / "all_streamed"));
+  ExpectSameFit(dir, "all_memory", "all_streamed");
+
+  // A budget between the streamed estimate with bands of 4 rows and the in-memory one streams,
+  // with bands the budget sets, and the process's peak stays under it.
+  const double in_memory = memory["estimated_in_memory_bytes"].get<double>();
+  const double budget_bytes = 0.5 * (in_memory + banded["estimated_peak_bytes"].get<double>());
+  char budget[32];
+  std::snprintf(budget, sizeof(budget), "%.6f", budget_bytes / (1u << 30));
+  RunThinslabOk(fit + " --max-memory " + budget + " --out " + (dir / "budget"));
+  const nlohmann::json summary = ReadJsonFile(dir / "budget/summary.json");
+  EXPECT_TRUE(summary["memory"]["streamed"].get<bool>()) << summary["memory"].dump();
+  EXPECT_GT(summary["memory"]["band_points"].get<int>(), 128) << summary["memory"].dump();
+  EXPECT_LT(summary["peak_memory_mib"].get<double>() * (1 << 20), budget_bytes) << summary.dump();
+  ExpectSameFit(dir, "memory", "budget");
+
+  // Nothing of the spill file is left in the output or beside it.
+  for (const char* out : {"streamed", "all_streamed", "budget"}) {
+    for (const auto& entry : std::filesystem::directory_iterator(dir / out)) {
+      EXPECT_EQ(entry.path().filename().string().find("slices"), std::string::npos) << entry.path();
+    }
+  }
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
+    EXPECT_EQ(entry.path().filename().string().find(".partial"), std::string::npos) << entry.path();
+  }
+
+  // Refused with the reason: a budget that cannot hold one grid row, the ladder on a streamed fit,
+  // a spill folder that cannot take the file.
+  const RunResult tiny = RunThinslab(fit + " --max-memory 0.01 --out " + (dir / "tiny"));
+  EXPECT_NE(tiny.exit_code, 0);
+  EXPECT_NE(tiny.output.find("--max-memory 0.01 GiB is too small"), std::string::npos) << tiny.output;
+  const RunResult ladder = RunThinslab(fit + " --ladder true --stream-band-points 128 --out " + (dir / "ladder"));
+  EXPECT_NE(ladder.exit_code, 0);
+  EXPECT_NE(ladder.output.find("--ladder: not available on a fit streamed from disk"), std::string::npos)
+      << ladder.output;
+  const RunResult spill =
+      RunThinslab(fit + " --stream-band-points 128 --spill-dir " + (dir / "no/such/folder") + " --out " + (dir / "x"));
+  EXPECT_NE(spill.exit_code, 0);
+  EXPECT_NE(spill.output.find("no/such/folder: cannot create the slice spill file"), std::string::npos) << spill.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "tiny"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "x"));
+}
+
+}  // namespace
+}  // namespace thinslab
