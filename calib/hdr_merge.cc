@@ -416,6 +416,50 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
     return Status::Error("MergeSessionBracket: fallback_read_noise_dn = " + std::to_string(fallback_read_noise_dn) +
                          ". Violated constraint: > 0");
   }
+  SessionDarks dark_frames;
+  THINSLAB_RETURN_IF_ERROR(LoadSessionDarks(session_dir, session, darks, response, &dark_frames));
+  return MergeSessionBracket(session_dir, session, camera, frames, dark_frames, response, options,
+                             fallback_read_noise_dn, noise, hdr, info, exposure_check);
+}
+
+Status LoadSessionDarks(const std::string& session_dir, const Session& session,
+                        const std::vector<const FrameRecord*>& darks, const CameraResponse* response,
+                        SessionDarks* out) {
+  *out = SessionDarks();
+  // Darks: linearised, grouped by exposure.
+  std::map<double, std::vector<Image>> dark_by_exposure;
+  for (const FrameRecord* d : darks) {
+    Image dark;
+    THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *d, &dark));
+    dark_by_exposure[d->exposure_time_us].push_back(std::move(dark));
+  }
+  out->num_frames = static_cast<int>(darks.size());
+  if (!dark_by_exposure.empty()) out->read_noise_dn = DarkFrameReadNoise(dark_by_exposure.begin()->second, response);
+  auto linear = [&](float v) { return response != nullptr ? response->Linearize(v) : static_cast<double>(v); };
+  for (const auto& [t, group] : dark_by_exposure) {
+    Image mean(group[0].width(), group[0].height());
+    for (const Image& d : group) {
+      for (size_t i = 0; i < mean.data().size(); ++i) {
+        mean.data()[i] += static_cast<float>(linear(d.data()[i]) / group.size());
+      }
+    }
+    out->linear.emplace(t, std::move(mean));
+    out->count[t] = static_cast<int>(group.size());
+  }
+  return Status::Ok();
+}
+
+Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                           const std::vector<const FrameRecord*>& frames, const SessionDarks& darks,
+                           const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
+                           const FrameNoiseModel& noise, HdrImage* hdr, SessionMergeInfo* info,
+                           ExposureCheckMode exposure_check) {
+  *info = SessionMergeInfo();
+  if (frames.empty()) return Status::Error(session_dir + ": no frames to merge");
+  if (!(fallback_read_noise_dn > 0)) {
+    return Status::Error("MergeSessionBracket: fallback_read_noise_dn = " + std::to_string(fallback_read_noise_dn) +
+                         ". Violated constraint: > 0");
+  }
   std::vector<Image> images(frames.size()), variances(frames.size());
   std::vector<HdrFrame> bracket(frames.size());
   std::set<double> exposures;
@@ -432,31 +476,14 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
     bracket[k].name = frames[k]->file;
     exposures.insert(frames[k]->exposure_time_us);
   }
-  // Darks: linearised, grouped by exposure.
-  std::map<double, std::vector<Image>> dark_by_exposure;
-  for (const FrameRecord* d : darks) {
-    Image dark;
-    THINSLAB_RETURN_IF_ERROR(LoadFrame(session_dir, session, *d, &dark));
-    dark_by_exposure[d->exposure_time_us].push_back(std::move(dark));
-  }
-  auto linear = [&](float v) { return response != nullptr ? response->Linearize(v) : static_cast<double>(v); };
   if (noise.variance_floor.has_value()) {
     info->read_noise_dn = std::sqrt(*noise.variance_floor);
-  } else if (!dark_by_exposure.empty()) {
-    info->read_noise_dn = DarkFrameReadNoise(dark_by_exposure.begin()->second, response);
+  } else if (!darks.linear.empty()) {
+    info->read_noise_dn = darks.read_noise_dn;
   } else {
     info->read_noise_dn = std::max(fallback_read_noise_dn, 0.5);
   }
-  std::map<double, Image> dark_linear;
-  for (const auto& [t, group] : dark_by_exposure) {
-    Image mean(group[0].width(), group[0].height());
-    for (const Image& d : group) {
-      for (size_t i = 0; i < mean.data().size(); ++i) {
-        mean.data()[i] += static_cast<float>(linear(d.data()[i]) / group.size());
-      }
-    }
-    dark_linear.emplace(t, std::move(mean));
-  }
+  const std::map<double, Image>& dark_linear = darks.linear;
   for (size_t k = 0; k < frames.size() && !dark_linear.empty(); ++k) {
     const double t = frames[k]->exposure_time_us;
     auto best = dark_linear.begin();
@@ -465,7 +492,7 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
     }
     if (std::abs(best->first - t) > 1e-3 * t) ++info->dark_exposure_mismatches;
     bracket[k].dark_linear_dn = &best->second;
-    bracket[k].dark_count = static_cast<int>(dark_by_exposure[best->first].size());
+    bracket[k].dark_count = darks.count.at(best->first);
   }
   options.saturation_dn = camera.saturation_dn - camera.black_level_dn;
   options.black_level_dn = camera.black_level_dn;
@@ -493,7 +520,7 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
   THINSLAB_RETURN_IF_ERROR(MergeExposureBracket(bracket, options, hdr).WithContext(session_dir));
   info->num_frames = static_cast<int>(frames.size());
   info->num_exposures = static_cast<int>(exposures.size());
-  info->num_darks = static_cast<int>(darks.size());
+  info->num_darks = darks.num_frames;
   info->exposures_us.assign(exposures.begin(), exposures.end());
   return Status::Ok();
 }

@@ -26,6 +26,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -120,6 +121,24 @@ enum class ExposureCheckMode {
 };
 Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                            const std::vector<const FrameRecord*>& frames, const std::vector<const FrameRecord*>& darks,
+                           const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
+                           const FrameNoiseModel& noise, HdrImage* hdr, SessionMergeInfo* info,
+                           ExposureCheckMode exposure_check = ExposureCheckMode::kNone);
+
+// The dark frames of MergeSessionBracket loaded, linearised and averaged per exposure once, for
+// a caller that merges many brackets against the same darks (a dot scan: one bracket per dot;
+// reading and averaging the darks again for each cost as much as its merge).
+struct SessionDarks {
+  std::map<double, Image> linear;  // Mean linearised dark per exposure [us].
+  std::map<double, int> count;     // Dark frames averaged into each.
+  int num_frames = 0;
+  double read_noise_dn = 0;        // DarkFrameReadNoise of the shortest exposure's; 0 without darks.
+};
+Status LoadSessionDarks(const std::string& session_dir, const Session& session,
+                        const std::vector<const FrameRecord*>& darks, const CameraResponse* response,
+                        SessionDarks* out);
+Status MergeSessionBracket(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                           const std::vector<const FrameRecord*>& frames, const SessionDarks& darks,
                            const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
                            const FrameNoiseModel& noise, HdrImage* hdr, SessionMergeInfo* info,
                            ExposureCheckMode exposure_check = ExposureCheckMode::kNone);

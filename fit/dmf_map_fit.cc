@@ -314,7 +314,17 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     shape_grid = MakeSliceShapeGrid(slices.Slice(centre), std::max(slices.dots_nx, slices.dots_ny));
     if (!streamed) shapes.setZero(np, shape_grid.num_nodes());
   }
+  // Streamed: the shapes go to a file of their own (point-major), read back for the PCA
+  // subsample and the projection without computing any slice again.
+  std::unique_ptr<SpillFile> shape_file;
+  const int nodes = options.cluster ? shape_grid.num_nodes() : 0;
+  if (options.cluster && streamed) {
+    THINSLAB_RETURN_IF_ERROR(
+        SpillFile::Create(slices.spill->dir(), static_cast<size_t>(np) * nodes, "slice shape spill", &shape_file));
+  }
+  std::vector<float> band_shapes;  // Streamed: a band's shapes, row-major.
   THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
+    if (shape_file) band_shapes.assign(static_cast<size_t>(count) * nodes, 0.0f);
     ParallelFor(count, options.num_threads, [&](int k) {
       const int p = first + k;
       maps->fits[p].status = static_cast<DmfStatus>(slices.point_status[p]);
@@ -328,14 +338,22 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         return;
       }
       fit_me[p] = 1;
-      if (options.cluster && !streamed) {
-        Eigen::VectorXf shape(shape_grid.num_nodes());
+      if (options.cluster) {
+        Eigen::VectorXf shape(nodes);
         AlignedSliceShape(slice, shape_grid, shape.data());
-        shapes.row(p) = shape.transpose();
+        if (shape_file) {
+          std::copy(shape.data(), shape.data() + nodes, band_shapes.data() + static_cast<size_t>(k) * nodes);
+        } else {
+          shapes.row(p) = shape.transpose();
+        }
       }
     });
+    if (shape_file) {
+      return shape_file->Write(static_cast<size_t>(first) * nodes, band_shapes.size(), band_shapes.data());
+    }
     return Status::Ok();
   }));
+  std::vector<float>().swap(band_shapes);
   maps->timings.diffuse_s = Seconds(t);
 
   // Which points are fitted directly.
@@ -344,7 +362,6 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   if (options.cluster) {
     DmfShapeClusterer clusterer(fit_me, options.clustering);
     const std::vector<int>& sample = clusterer.pca_sample();
-    const int nodes = shape_grid.num_nodes();
     Eigen::MatrixXf sample_shapes(sample.size(), nodes);
     if (!streamed) {
       for (size_t s = 0; s < sample.size(); ++s) sample_shapes.row(s) = shapes.row(sample[s]);
@@ -354,34 +371,29 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       });
       shapes = Eigen::MatrixXf();
     } else {
-      // The subsample's shapes, then every point's projection, one band at a time.
-      std::vector<int> sample_row(np, -1);
-      for (size_t s = 0; s < sample.size(); ++s) sample_row[sample[s]] = static_cast<int>(s);
-      THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
-        ParallelFor(count, options.num_threads, [&](int k) {
-          const int p = first + k;
-          if (sample_row[p] < 0) return;
-          Eigen::VectorXf shape(nodes);
-          AlignedSliceShape(slices.Slice(p), shape_grid, shape.data());
-          sample_shapes.row(sample_row[p]) = shape.transpose();
-        });
-        return Status::Ok();
-      }));
+      // The subsample's shapes, then every point's projection, one band at a time, from the
+      // shape file.
+      Eigen::VectorXf shape(nodes);
+      for (size_t s = 0; s < sample.size(); ++s) {
+        THINSLAB_RETURN_IF_ERROR(shape_file->Read(static_cast<size_t>(sample[s]) * nodes, nodes, shape.data()));
+        sample_shapes.row(s) = shape.transpose();
+      }
       clusterer.FitProjection(sample_shapes);
       sample_shapes = Eigen::MatrixXf();
-      Eigen::MatrixXf band_shapes;
-      THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
-        band_shapes.setZero(count, nodes);
+      // Half a band at a time: the rows as read and as a matrix take a band's shapes' memory.
+      const int band = std::max(1, slices.spill->band_points() / 2);
+      std::vector<float> rows;
+      Eigen::MatrixXf band_matrix;  // The same type as the in-memory `shapes` (Project's arithmetic).
+      for (int first = 0; first < np; first += band) {
+        const int count = std::min(band, np - first);
+        rows.resize(static_cast<size_t>(count) * nodes);
+        THINSLAB_RETURN_IF_ERROR(shape_file->Read(static_cast<size_t>(first) * nodes, rows.size(), rows.data()));
+        band_matrix = Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+            rows.data(), count, nodes);
         ParallelFor(count, options.num_threads, [&](int k) {
-          const int p = first + k;
-          if (!fit_me[p]) return;
-          Eigen::VectorXf shape(nodes);
-          AlignedSliceShape(slices.Slice(p), shape_grid, shape.data());
-          band_shapes.row(k) = shape.transpose();
-          clusterer.Project(p, band_shapes, k);
+          if (fit_me[first + k]) clusterer.Project(first + k, band_matrix, k);
         });
-        return Status::Ok();
-      }));
+      }
     }
     maps->clustering = clusterer.Cluster();
     direct = maps->clustering.representatives;

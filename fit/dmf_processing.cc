@@ -16,6 +16,7 @@
 #include "thinslab/core/camera_model.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/math.h"
+#include "thinslab/core/parallel.h"
 #include "thinslab/core/session_io.h"
 
 namespace thinslab {
@@ -133,7 +134,7 @@ Status PlanDmfMemory(int num_points, int grid_width, int num_dots, int num_valid
   const double shape = 4.0 * nd;  // A slice shape: about one u-grid node per dot (fit/dmf_slice_shape.h).
   // Per point whatever the mode: its fit and clustering entries, the map images, the
   // rectifier's sub-samples, the validation dots' values and the stages' per-point vectors.
-  const double per_point = sizeof(DmfPointFit) + 4 * (4 + 8) + 24 * 4 + 16 * 4 +
+  const double per_point = sizeof(DmfPointFit) + 4 * (4 + 8) + 24 * 4 + 16 * 4 + 3 * 8 +
                            Sqr(options.supersample) * 8.0 + 8.0 * num_validation_dots + 64;
   // Whatever the grid: the process itself (about 100 MiB resident for a tiny fit: code, libraries,
   // the capture's manifest), a bracket's camera frames and their HDR images (about 64 bytes
@@ -151,7 +152,7 @@ Status PlanDmfMemory(int num_points, int grid_width, int num_dots, int num_valid
   }
   // Streamed: a band's values, sigmas and shapes in memory; the representatives' NDFs kept.
   const double resident = fixed + np * per_point + representatives * ndf;
-  const double per_band_point = 8 * nd + shape + 4;
+  const double per_band_point = 8 * nd + shape + 64;
   double band = options.max_memory_bytes > 0 ? std::floor((options.max_memory_bytes - resident) / per_band_point) : np;
   if (options.stream_band_points > 0) band = std::max<double>(grid_width, std::min<double>(band, options.stream_band_points));
   char text[400];
@@ -405,10 +406,15 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   const auto darks = session.UsableFrames("dark", sample_state);
   THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(session_dir, session, camera, &report->noise));
   THINSLAB_RETURN_IF_ERROR(MeasureDarkLevel(session_dir, session, camera, darks, rectifier, report));
+  SessionDarks dark_frames;  // Read and averaged once for all the dots' merges.
+  THINSLAB_RETURN_IF_ERROR(LoadSessionDarks(session_dir, session, darks, response, &dark_frames));
   // A of Eq. 12 with the dot radius L_q was measured with (L_q A is the dot's intensity).
   const double dot_radius_px = calibrated.present ? calibrated.dot_radius_px : report->dot_radius_px;
   const double dot_area = kPi * Sqr(dot_radius_px * monitor.pixel_pitch_m);
   std::vector<int> saturated_dots(np, 0);
+  // Where each point's light enters the slab (the same for every dot).
+  std::vector<Eigen::Vector3d> entry_points(np);
+  for (int p = 0; p < np; ++p) entry_points[p] = slices->LightEntryPoint(p);
   int q = 0;
   const int check_stride = std::max(1, nd / kDotsExposureChecked);
   // One dot's bracket: merged, rectified, Eq. 12 with L_q and the dot's position; `write` gets
@@ -417,7 +423,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
                      const std::string& name, bool check, const auto& write) -> Status {
     HdrImage hdr;
     SessionMergeInfo info;
-    THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, darks, response,
+    THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, dark_frames, response,
                                                  HdrMergeOptions(), 1.0, report->noise, &hdr, &info,
                                                  check ? ExposureCheckMode::kCheck : ExposureCheckMode::kNone)
                                  .WithContext(name));
@@ -427,15 +433,17 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     const Image radiance = rectifier.Rectify(hdr.radiance);
     const Image variance = rectifier.Rectify(hdr.variance);
     const Image saturated = rectifier.RectifyAny(hdr.all_saturated);
-    for (int p = 0; p < np; ++p) {
-      const int x = p % grid.width_px, y = p / grid.width_px;
-      const Eigen::Vector3d to_dot = position - slices->LightEntryPoint(p);
-      const double dist2 = to_dot.squaredNorm();
-      const double cos2 = Sqr(to_dot.z()) / dist2;  // cos_e (z . i_q): monitor parallel to the sample.
-      const double scale = dist2 / (l_q * dot_area * cos2);
-      write(p, std::max(0.0f, radiance.at(x, y)) * scale, std::sqrt(std::max(0.0f, variance.at(x, y))) * scale,
-            saturated.at(x, y) > 0);
-    }
+    ParallelFor(grid.height_px, DefaultThreadCount(), [&](int y) {
+      for (int x = 0; x < grid.width_px; ++x) {
+        const int p = y * grid.width_px + x;
+        const Eigen::Vector3d to_dot = position - entry_points[p];
+        const double dist2 = to_dot.squaredNorm();
+        const double cos2 = Sqr(to_dot.z()) / dist2;  // cos_e (z . i_q): monitor parallel to the sample.
+        const double scale = dist2 / (l_q * dot_area * cos2);
+        write(p, std::max(0.0f, radiance.at(x, y)) * scale, std::sqrt(std::max(0.0f, variance.at(x, y))) * scale,
+              saturated.at(x, y) > 0);
+      }
+    });
     return Status::Ok();
   };
   ProgressTracker progress(options.progress, "fit dmf: dot frames (HDR merge, Eq. 12)",

@@ -18,6 +18,25 @@
 
 namespace thinslab {
 
+// Floats in an unlinked file (O_TMPFILE, else a named file unlinked at once), read and written
+// at float offsets.
+class SpillFile {
+ public:
+  // Room for `num_floats` floats in a new unlinked file in `dir`; `what` names it in errors.
+  static Status Create(const std::string& dir, size_t num_floats, const std::string& what,
+                       std::unique_ptr<SpillFile>* out);
+  ~SpillFile();
+  SpillFile(const SpillFile&) = delete;
+  SpillFile& operator=(const SpillFile&) = delete;
+  Status Read(size_t offset_floats, size_t count, float* out) const;
+  Status Write(size_t offset_floats, size_t count, const float* in);
+
+ private:
+  SpillFile() = default;
+  int fd_ = -1;
+  std::string dir_, what_;
+};
+
 class DmfSliceSpill {
  public:
   // An empty matrix of num_points x num_dots (value and sigma) in an unlinked file in `dir`,
@@ -48,10 +67,8 @@ class DmfSliceSpill {
 
  private:
   DmfSliceSpill() = default;
-  Status ReadAt(size_t offset_floats, size_t count, float* out) const;
-  Status WriteAt(size_t offset_floats, size_t count, const float* in);
 
-  int fd_ = -1;
+  std::unique_ptr<SpillFile> file_;
   std::string dir_;
   int num_points_ = 0, num_dots_ = 0, band_points_ = 0;
   int band_first_ = 0, band_count_ = 0;
