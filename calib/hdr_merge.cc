@@ -410,12 +410,7 @@ Status MergeSessionBracket(const std::string& session_dir, const Session& sessio
                            const CameraResponse* response, HdrMergeOptions options, double fallback_read_noise_dn,
                            const FrameNoiseModel& noise, HdrImage* hdr, SessionMergeInfo* info,
                            ExposureCheckMode exposure_check) {
-  *info = SessionMergeInfo();
-  if (frames.empty()) return Status::Error(session_dir + ": no frames to merge");
-  if (!(fallback_read_noise_dn > 0)) {
-    return Status::Error("MergeSessionBracket: fallback_read_noise_dn = " + std::to_string(fallback_read_noise_dn) +
-                         ". Violated constraint: > 0");
-  }
+  if (frames.empty()) return Status::Error(session_dir + ": no frames to merge");  // Before reading the darks.
   SessionDarks dark_frames;
   THINSLAB_RETURN_IF_ERROR(LoadSessionDarks(session_dir, session, darks, response, &dark_frames));
   return MergeSessionBracket(session_dir, session, camera, frames, dark_frames, response, options,
