@@ -289,7 +289,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   const DmfNdfGrid grid(options.point.ndf_resolution);
   const int np = slices.num_points();
   // Streamed (issue #29): every stage below visits the points band by band (ForEachPointBand);
-  // the shapes are computed again per stage instead of kept, and interpolated NDFs are not kept.
+  // the shapes go to a spill file of their own, and interpolated NDFs are not kept.
   const bool streamed = slices.spill != nullptr;
   maps->width = slices.width;
   maps->height = slices.height;
@@ -298,7 +298,6 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   maps->fits.assign(np, DmfPointFit());
   maps->num_fitted = 0;
   maps->clustering = DmfClustering();
-  maps->interpolated_ndfs_stored = !streamed;
 
   // Diffuse separation (Eq. 14) and the slice shapes the clustering compares.
   auto t = std::chrono::steady_clock::now();

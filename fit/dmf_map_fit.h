@@ -144,10 +144,9 @@ struct DmfMaps {
   int num_fitted = 0;             // Points fitted directly (representatives or all).
   DmfClustering clustering;       // Empty unless clustered.
   DmfMapTimings timings;
-  // False when the fit streamed its slices (issue #29): interpolated points then keep no
-  // log_ndf (N*N doubles each) and FitWithNdf rebuilds it from the representatives.
-  bool interpolated_ndfs_stored = true;
-  // Point p's fit with its log_ndf filled in (a copy).
+  // Point p's fit with its log_ndf filled in (a copy): a fit that streamed its slices (issue #29)
+  // keeps no log_ndf (N*N doubles each) for interpolated points (DmfPointFit::ndf_interpolated)
+  // and this rebuilds it from the representatives.
   DmfPointFit FitWithNdf(int p) const;
   // Channels top_face_weight (Dai's alpha), smith_alpha, k_s, rho_d, log_rms_residual (ln RMS of
   // Eq. 15), status, measured_ndf_fraction, transmittance, equivalent_roughness, ndf_family

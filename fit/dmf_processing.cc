@@ -150,7 +150,8 @@ Status PlanDmfMemory(int num_points, int grid_width, int num_dots, int num_valid
     plan->streamed_bytes = plan->in_memory_bytes;
     return Status::Ok();
   }
-  // Streamed: a band's values, sigmas and shapes in memory; the representatives' NDFs kept.
+  // Streamed: a band's values, sigmas and shapes in memory (and LoadBand's 16 columns); the
+  // representatives' NDFs kept.
   const double resident = fixed + np * per_point + representatives * ndf;
   const double per_band_point = 8 * nd + shape + 64;
   double band = options.max_memory_bytes > 0 ? std::floor((options.max_memory_bytes - resident) / per_band_point) : np;
@@ -336,9 +337,8 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
                                            &grid.width_px, &grid.height_px));
   grid.plane_z_m = 0;
   grid.supersample = options.supersample;
-  // Refused before the slices are allocated: about 16 bytes per point and dot (Eq. 12 slices
-  // and their variances in float) plus 4 KiB per point of fit state (measured: 26 KB per point
-  // with 40 x 40 dots, 8 KB with 16 x 16; docs/benchmarks.md).
+  // In memory or streamed (PlanDmfMemory, --max-memory), and refused before the slices are
+  // allocated when even that needs more than the machine has.
   // Validation dots (FrameRecord::validation): measured the same way, placed from the fitted
   // monitor geometry with the median L_q (they are not in the all-dots grid), never fitted.
   std::map<std::pair<double, double>, std::vector<const FrameRecord*>> validation_by_dot;
@@ -354,6 +354,12 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
                                          static_cast<double>(camera.width_px) * camera.height_px, options,
                                          &report->memory)
                                .WithContext(grid_text));
+  if (report->memory.streamed && !options.streaming_refused_by.empty()) {
+    char need[64];
+    std::snprintf(need, sizeof(need), "%.1f", report->memory.in_memory_bytes / double(1u << 30));
+    return Status::Error(options.streaming_refused_by + ": not available on a fit streamed from disk (" + grid_text +
+                         " needs about " + need + " GiB in memory; --max-memory " + need + " or a coarser --pitch-mm)");
+  }
   THINSLAB_RETURN_IF_ERROR(CheckMemoryNeed(
       report->memory.streamed_bytes,
       grid_text + (report->memory.streamed ? "" : " in memory (--max-memory streams it from disk)")));

@@ -66,6 +66,9 @@ struct DmfProcessingOptions {
   // > 0: stream whatever the budget, in bands of at most this many points (whole grid rows; at
   // least one row). For checking the streamed path on small grids.
   int stream_band_points = 0;
+  // Non-empty: the option of the fit that follows that cannot run streamed (`--ladder`); a grid
+  // over the budget is then refused before any frame is read.
+  std::string streaming_refused_by;
   int fit_ndf_resolution = 32;   // Of the fit that follows (its NDFs' memory).
   double fit_cluster_fraction = 0.01;  // Of the fit that follows (1 = every point fitted directly).
   bool Check(std::string* error) const;

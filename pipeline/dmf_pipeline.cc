@@ -239,15 +239,11 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   if ((run.processing.max_memory_bytes > 0 || run.processing.stream_band_points > 0) && run.processing.spill_dir.empty()) {
     run.processing.spill_dir = out.path();
   }
+  // The ladder keeps the NDFs it replaces per point: in memory only.
+  if (run.ladder) run.processing.streaming_refused_by = "--ladder";
   DmfSliceSet slices;
   DmfProcessingReport processing;
   THINSLAB_RETURN_IF_ERROR(PrepareDotScanSlices(session_dir, run.processing, &slices, &processing));
-  if (processing.memory.streamed && run.ladder) {
-    char need[64];
-    std::snprintf(need, sizeof(need), "%.1f", processing.memory.in_memory_bytes / double(1u << 30));
-    return Status::Error(std::string("--ladder: not available on a fit streamed from disk (this grid needs about ") +
-                         need + " GiB in memory; --max-memory " + need + " or a coarser --pitch-mm)");
-  }
   if (processing.memory.streamed) {
     char line[160];
     std::snprintf(line, sizeof(line), "memory: the slices (%.2f GiB) streamed in bands of %d points",
