@@ -10,6 +10,7 @@
 #include <malloc.h>
 
 #include <iostream>
+#include <sstream>
 #include <new>
 #include <string>
 #include <vector>
@@ -20,6 +21,7 @@
 #include "thinslab/app/subcommands.h"
 #include "thinslab/app/verbosity.h"
 #include "thinslab/core/file.h"
+#include "thinslab/core/process_group.h"
 #include "thinslab/core/provenance.h"
 #include "thinslab/core/version.h"
 
@@ -108,6 +110,8 @@ int RunCompletion(int argc, char** argv) {
   return 0;
 }
 
+int RunCommandLine(int argc, char** argv);
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -118,6 +122,51 @@ int main(int argc, char** argv) {
   // are reused.
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 128 << 20);
+  // Under mpirun (issue #29 item 2): every process runs the command; rank 0 alone speaks.
+  if (const thinslab::Status started = thinslab::StartProcessGroup(&argc, &argv); !started.ok()) {
+    std::cerr << "error: " << started.message() << "\n";
+    return 1;
+  }
+  const int code = RunCommandLine(argc, argv);
+  thinslab::FinishProcessGroup(code);
+  return code;
+}
+
+namespace {
+
+int RunCommand(int argc, char** argv);
+
+// Processes other than rank 0 of a group print nothing; their error output is kept and shown
+// (named with the rank) only when the error is theirs alone (the shared ones rank 0 prints).
+int RunCommandLine(int argc, char** argv) {
+  thinslab::ProcessGroup& group = thinslab::ProcessGroup::World();
+  if (!group.distributed()) return RunCommand(argc, argv);
+  const bool shared_out = argc > 2 && std::string(argv[1]) == "fit" && std::string(argv[2]) == "dmf";
+  if (!shared_out) {
+    const std::string refusal = "thinslab " + std::string(argc > 1 ? argv[1] : "") +
+                                " runs as one process; under mpirun only `thinslab fit dmf` shares its work out "
+                                "(docs/batch.md)";
+    group.Agree(thinslab::Status::Error(refusal));  // Every process knows: none is left waiting.
+    if (group.root()) std::cerr << "error: " << refusal << "\n";
+    return 1;
+  }
+  if (group.root()) return RunCommand(argc, argv);
+  std::ostringstream quiet_out, kept_err;
+  std::streambuf* out = std::cout.rdbuf(quiet_out.rdbuf());
+  std::streambuf* err = std::cerr.rdbuf(kept_err.rdbuf());
+  const int code = RunCommand(argc, argv);
+  std::cout.rdbuf(out);
+  std::cerr.rdbuf(err);
+  if (code != 0 && !group.shared_error()) {
+    std::istringstream lines(kept_err.str());
+    for (std::string line; std::getline(lines, line);) {
+      std::cerr << "process " << group.rank() << " of " << group.size() << ": " << line << "\n";
+    }
+  }
+  return code;
+}
+
+int RunCommand(int argc, char** argv) {
   google::InitGoogleLogging(argv[0]);
   FLAGS_logtostderr = true;
   FLAGS_minloglevel = 1;
@@ -153,3 +202,5 @@ int main(int argc, char** argv) {
   std::cerr << "thinslab: unknown command '" << name << "' (try 'thinslab help')\n";
   return 2;
 }
+
+}  // namespace

@@ -29,10 +29,14 @@ class Status {
   std::string message_;
 };
 
-#define THINSLAB_RETURN_IF_ERROR(expr)      \
-  do {                                      \
-    ::thinslab::Status status_ = (expr);    \
-    if (!status_.ok()) return status_;      \
+// The status variable is named per expansion, so that a lambda inside `expr` may use the macro too.
+#define THINSLAB_RETURN_IF_ERROR(expr) THINSLAB_RETURN_IF_ERROR_IMPL_(expr, THINSLAB_STATUS_NAME_(__COUNTER__))
+#define THINSLAB_STATUS_NAME_(n) THINSLAB_STATUS_CONCAT_(status_, n)
+#define THINSLAB_STATUS_CONCAT_(a, b) a##b
+#define THINSLAB_RETURN_IF_ERROR_IMPL_(expr, name) \
+  do {                                             \
+    ::thinslab::Status name = (expr);              \
+    if (!name.ok()) return name;                   \
   } while (0)
 
 }  // namespace thinslab

@@ -13,12 +13,21 @@
 
 #include "thinslab/core/math.h"
 #include "thinslab/core/parallel.h"
+#include "thinslab/core/process_group.h"
 
 namespace thinslab {
 namespace {
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// Points per process and round when a group shares a loop out (issue #29): a round's results
+// (up to about 10 KB a point with its NDF) stay a few MB per process; alone, the whole band at
+// once, its points balanced over the threads as before.
+constexpr int kPointsPerProcessRound = 512;
+int PointChunk(const ProcessGroup& group, int count) {
+  return group.distributed() ? kPointsPerProcessRound * group.size() : count;
 }
 
 }  // namespace
@@ -291,6 +300,10 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   // Streamed (issue #29): every stage below visits the points band by band (ForEachPointBand);
   // the shapes go to a spill file of their own, and interpolated NDFs are not kept.
   const bool streamed = slices.spill != nullptr;
+  // Under mpirun every process runs this function on the same slices; the per-point loops are
+  // shared out (DistributedFor) and every process ends with the same maps. The clustering runs
+  // whole on each (it is deterministic, and its inputs are the same).
+  ProcessGroup& group = ProcessGroup::World();
   maps->width = slices.width;
   maps->height = slices.height;
   maps->ndf_resolution = grid.n();
@@ -322,10 +335,13 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         SpillFile::Create(slices.spill->dir(), static_cast<size_t>(np) * nodes, "slice shape spill", &shape_file));
   }
   std::vector<float> band_shapes;  // Streamed: a band's shapes, row-major.
+  // Point p's shape (in memory: a row of `shapes`; streamed: of the band starting at `first`).
+  auto shape_of = [&](int first, int p) -> float* {
+    return shape_file ? band_shapes.data() + static_cast<size_t>(p - first) * nodes : nullptr;
+  };
   THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
     if (shape_file) band_shapes.assign(static_cast<size_t>(count) * nodes, 0.0f);
-    ParallelFor(count, options.num_threads, [&](int k) {
-      const int p = first + k;
+    auto separate = [&](int p) {
       maps->fits[p].status = static_cast<DmfStatus>(slices.point_status[p]);
       if (slices.point_status[p] != static_cast<uint8_t>(DmfStatus::kOk)) return;
       const DmfSlice slice = slices.Slice(p);
@@ -341,12 +357,47 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         Eigen::VectorXf shape(nodes);
         AlignedSliceShape(slice, shape_grid, shape.data());
         if (shape_file) {
-          std::copy(shape.data(), shape.data() + nodes, band_shapes.data() + static_cast<size_t>(k) * nodes);
+          std::copy(shape.data(), shape.data() + nodes, shape_of(first, p));
         } else {
           shapes.row(p) = shape.transpose();
         }
       }
-    });
+    };
+    DistributedLoop loop;
+    loop.compute = [&](int begin, int end) {
+      ParallelFor(end - begin, options.num_threads, [&](int k) { separate(first + begin + k); });
+      return Status::Ok();
+    };
+    loop.pack = [&](int k, ByteWriter* out) {
+      const int p = first + k;
+      out->Put(maps->fits[p].status);
+      out->Put(rho_d[p]);
+      out->Put(fit_me[p]);
+      if (!options.cluster || !fit_me[p]) return;
+      std::vector<float> shape(nodes);
+      if (shape_file) {
+        std::copy(shape_of(first, p), shape_of(first, p) + nodes, shape.begin());
+      } else {
+        for (int n = 0; n < nodes; ++n) shape[n] = shapes(p, n);
+      }
+      out->PutVector(shape);
+    };
+    loop.unpack = [&](int k, ByteReader* in) {
+      const int p = first + k;
+      if (!in->Get(&maps->fits[p].status) || !in->Get(&rho_d[p]) || !in->Get(&fit_me[p])) return false;
+      maps->fits[p].rho_d = rho_d[p];
+      if (!options.cluster || !fit_me[p]) return true;
+      std::vector<float> shape;
+      if (!in->GetVector(&shape) || static_cast<int>(shape.size()) != nodes) return false;
+      if (shape_file) {
+        std::copy(shape.begin(), shape.end(), shape_of(first, p));
+      } else {
+        for (int n = 0; n < nodes; ++n) shapes(p, n) = shape[n];
+      }
+      return true;
+    };
+    THINSLAB_RETURN_IF_ERROR(
+        DistributedFor(group, count, PointChunk(group, count), "fit dmf: diffuse separation (Eq. 14)", loop));
     if (shape_file) {
       return shape_file->Write(static_cast<size_t>(first) * nodes, band_shapes.size(), band_shapes.data());
     }
@@ -428,12 +479,25 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     for (int p : direct) {
       if (p >= first && p < first + count) in_band.push_back(p);
     }
-    if (!ParallelFor(
-            static_cast<int>(in_band.size()), options.num_threads, [&](int k) { fit_direct(in_band[k]); }, &progress,
-            fitted)) {
-      return Status::Error("FitDualMicrofacetMaps: cancelled");
-    }
-    fitted += static_cast<int64_t>(in_band.size());
+    const int n = static_cast<int>(in_band.size());
+    DistributedLoop loop;
+    // Alone: progress after each point; in a group, after each round.
+    loop.compute = [&](int begin, int end) {
+      if (!ParallelFor(
+              end - begin, options.num_threads, [&](int k) { fit_direct(in_band[begin + k]); },
+              group.distributed() ? nullptr : &progress, fitted + begin)) {
+        return Status::Error("FitDualMicrofacetMaps: cancelled");
+      }
+      return Status::Ok();
+    };
+    loop.pack = [&](int k, ByteWriter* out) { PackDmfPointFit(maps->fits[in_band[k]], out); };
+    loop.unpack = [&](int k, ByteReader* in) { return UnpackDmfPointFit(in, &maps->fits[in_band[k]]); };
+    loop.chunk_done = [&](int, int end) {
+      if (group.distributed() && !progress.Report(fitted + end)) return Status::Error("FitDualMicrofacetMaps: cancelled");
+      return Status::Ok();
+    };
+    THINSLAB_RETURN_IF_ERROR(DistributedFor(group, n, PointChunk(group, n), "fit dmf: point fits (Eqs. 14-19)", loop));
+    fitted += n;
     return Status::Ok();
   }));
   maps->num_fitted = static_cast<int>(direct.size());
@@ -446,8 +510,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     std::vector<uint8_t> is_rep(np, 0);
     for (int p : c.representatives) is_rep[p] = 1;
     THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
-      ParallelFor(count, options.num_threads, [&](int i) {
-        const int p = first + i;
+      auto interpolate = [&](int p) {
         if (!fit_me[p] || is_rep[p]) return;
         DmfPointFit f;
         f.rho_d = rho_d[p];
@@ -509,8 +572,25 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         }
         if (streamed) std::vector<double>().swap(f.log_ndf);  // FitWithNdf rebuilds it.
         maps->fits[p] = f;
-      });
-      return Status::Ok();
+      };
+      DistributedLoop loop;
+      loop.compute = [&](int begin, int end) {
+        ParallelFor(end - begin, options.num_threads, [&](int k) { interpolate(first + begin + k); });
+        return Status::Ok();
+      };
+      // Only the interpolated points: every process already has the others' fits.
+      loop.pack = [&](int k, ByteWriter* out) {
+        const int p = first + k;
+        const uint8_t interpolated = fit_me[p] && !is_rep[p];
+        out->Put(interpolated);
+        if (interpolated) PackDmfPointFit(maps->fits[p], out);
+      };
+      loop.unpack = [&](int k, ByteReader* in) {
+        uint8_t interpolated = 0;
+        if (!in->Get(&interpolated)) return false;
+        return !interpolated || UnpackDmfPointFit(in, &maps->fits[first + k]);
+      };
+      return DistributedFor(group, count, PointChunk(group, count), "fit dmf: interpolation (Eqs. 20-22)", loop);
     }));
   }
   maps->timings.interpolation_s = Seconds(t);

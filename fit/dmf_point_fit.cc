@@ -618,4 +618,35 @@ double LogRmsResidual(const DmfSlice& slice, const DmfPointFit& fit, const DmfNd
   return n > 0 ? std::sqrt(sum / n) : 0;
 }
 
+void PackDmfPointFit(const DmfPointFit& f, ByteWriter* out) {
+  out->Put(f.status);
+  out->Put(f.alpha);
+  out->Put(f.smith_alpha);
+  out->Put(f.k_s);
+  out->Put(f.rho_d);
+  out->PutVector(f.log_ndf);
+  out->Put(f.ndf_interpolated);
+  out->Put(f.alpha_iterations);
+  out->Put(f.alpha_residual);
+  out->Put(f.num_used);
+  out->Put(f.log_rms_residual);
+  out->Put(f.measured_ndf_fraction);
+  out->Put(f.transmittance);
+  out->Put(f.roughness);
+  out->Put(f.split_fitted);
+  out->Put(f.split_alpha_difference);
+  out->Put(f.split_roughness_difference);
+  out->Put(f.sigma_alpha);
+  out->Put(f.sigma_roughness);
+}
+
+bool UnpackDmfPointFit(ByteReader* in, DmfPointFit* f) {
+  return in->Get(&f->status) && in->Get(&f->alpha) && in->Get(&f->smith_alpha) && in->Get(&f->k_s) &&
+         in->Get(&f->rho_d) && in->GetVector(&f->log_ndf) && in->Get(&f->ndf_interpolated) &&
+         in->Get(&f->alpha_iterations) && in->Get(&f->alpha_residual) && in->Get(&f->num_used) &&
+         in->Get(&f->log_rms_residual) && in->Get(&f->measured_ndf_fraction) && in->Get(&f->transmittance) &&
+         in->Get(&f->roughness) && in->Get(&f->split_fitted) && in->Get(&f->split_alpha_difference) &&
+         in->Get(&f->split_roughness_difference) && in->Get(&f->sigma_alpha) && in->Get(&f->sigma_roughness);
+}
+
 }  // namespace thinslab

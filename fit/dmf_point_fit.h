@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "thinslab/core/byte_buffer.h"
 #include "thinslab/fit/dmf_equivalent_roughness.h"
 #include "thinslab/fit/dmf_ndf_grid.h"
 
@@ -182,6 +183,11 @@ struct DmfPointFit {
   // terms of fit/dmf_map_fit.h); 0 where not estimated.
   double sigma_alpha = 0, sigma_roughness = 0;
 };
+
+// A fit packed for another process of the group (core/process_group.h) and read back: every
+// field, bit for bit. Unpack returns false on a message of another layout.
+void PackDmfPointFit(const DmfPointFit& fit, ByteWriter* out);
+bool UnpackDmfPointFit(ByteReader* in, DmfPointFit* fit);
 
 // DmfPointFit::transmittance: sum of R over a 64 x 64 grid of the unit disk of projected light
 // directions (cos(theta) d omega = dx dy).

@@ -17,6 +17,7 @@
 #include "thinslab/core/file.h"
 #include "thinslab/core/math.h"
 #include "thinslab/core/parallel.h"
+#include "thinslab/core/process_group.h"
 #include "thinslab/core/session_io.h"
 
 namespace thinslab {
@@ -389,15 +390,12 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   slices->eta = options.eta > 0 ? options.eta : session.rig.sample.glass_ior;
   report->glass_thickness_m = slices->glass_thickness_m;
   const int np = slices->num_points(), nd = static_cast<int>(displayed.size());
-  std::vector<float> column_value, column_sigma;  // Streamed: one dot's column before it goes to disk.
   if (report->memory.streamed) {
     std::unique_ptr<DmfSliceSpill> spill;
     THINSLAB_RETURN_IF_ERROR(DmfSliceSpill::Create(options.spill_dir, np, nd, report->memory.band_points, &spill));
     slices->spill = std::move(spill);
     slices->value.clear();
     slices->sigma.clear();
-    column_value.assign(np, 0.0f);
-    column_sigma.assign(np, 0.0f);
     report->slice_bytes = slices->spill->BandBytes();
   } else {
     slices->value.assign(static_cast<size_t>(np) * nd, 0.0f);
@@ -421,74 +419,136 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   // Where each point's light enters the slab (the same for every dot).
   std::vector<Eigen::Vector3d> entry_points(np);
   for (int p = 0; p < np; ++p) entry_points[p] = slices->LightEntryPoint(p);
-  int q = 0;
   const int check_stride = std::max(1, nd / kDotsExposureChecked);
-  // One dot's bracket: merged, rectified, Eq. 12 with L_q and the dot's position; `write` gets
-  // each point's R, its sigma and whether every exposure saturated there.
-  auto measure = [&](const std::vector<const FrameRecord*>& frames, const Eigen::Vector3d& position, double l_q,
-                     const std::string& name, bool check, const auto& write) -> Status {
+  // One dot's bracket: merged, rectified, Eq. 12 with L_q and the dot's position, into a column
+  // of each point's R, its sigma and whether every exposure saturated there.
+  struct DotJob {
+    const std::vector<const FrameRecord*>* frames;
+    Eigen::Vector3d position;
+    double l_q;
+    std::string name;
+    bool check;        // Measure the exposures the camera applied (one bracket in kDotsExposureChecked).
+    int column;        // Grid dot q, or validation dot (column - nd).
+  };
+  struct DotColumn {
+    std::vector<float> value, sigma;
+    std::vector<uint8_t> saturated;
+    ExposureCheck check;
+    int frames = 0, exposures = 0;
+  };
+  auto measure = [&](const DotJob& job, DotColumn* column) -> Status {
     HdrImage hdr;
     SessionMergeInfo info;
-    THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, dark_frames, response,
+    THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, *job.frames, dark_frames, response,
                                                  HdrMergeOptions(), 1.0, report->noise, &hdr, &info,
-                                                 check ? ExposureCheckMode::kCheck : ExposureCheckMode::kNone)
-                                 .WithContext(name));
-    if (check) CombineExposureChecks(info.exposure_check, &report->exposure_check);  // One bracket for all dots.
-    report->num_frames += info.num_frames;
-    report->num_exposures = std::max(report->num_exposures, info.num_exposures);
+                                                 job.check ? ExposureCheckMode::kCheck : ExposureCheckMode::kNone)
+                                 .WithContext(job.name));
+    column->check = info.exposure_check;
+    column->frames = info.num_frames;
+    column->exposures = info.num_exposures;
     const Image radiance = rectifier.Rectify(hdr.radiance);
     const Image variance = rectifier.Rectify(hdr.variance);
     const Image saturated = rectifier.RectifyAny(hdr.all_saturated);
+    column->value.assign(np, 0.0f);
+    column->sigma.assign(np, 0.0f);
+    column->saturated.assign(np, 0);
     ParallelFor(grid.height_px, DefaultThreadCount(), [&](int y) {
       for (int x = 0; x < grid.width_px; ++x) {
         const int p = y * grid.width_px + x;
-        const Eigen::Vector3d to_dot = position - entry_points[p];
+        const Eigen::Vector3d to_dot = job.position - entry_points[p];
         const double dist2 = to_dot.squaredNorm();
         const double cos2 = Sqr(to_dot.z()) / dist2;  // cos_e (z . i_q): monitor parallel to the sample.
-        const double scale = dist2 / (l_q * dot_area * cos2);
-        write(p, std::max(0.0f, radiance.at(x, y)) * scale, std::sqrt(std::max(0.0f, variance.at(x, y))) * scale,
-              saturated.at(x, y) > 0);
+        const double scale = dist2 / (job.l_q * dot_area * cos2);
+        column->value[p] = static_cast<float>(std::max(0.0f, radiance.at(x, y)) * scale);
+        column->sigma[p] = static_cast<float>(std::sqrt(std::max(0.0f, variance.at(x, y))) * scale);
+        column->saturated[p] = saturated.at(x, y) > 0;
       }
     });
     return Status::Ok();
   };
-  ProgressTracker progress(options.progress, "fit dmf: dot frames (HDR merge, Eq. 12)",
-                           static_cast<int64_t>(by_dot.size()));
+  std::vector<DotJob> jobs;
+  int q = 0;
   for (const auto& [yx, frames] : by_dot) {
-    if (!progress.Report(q)) return Status::Error("PrepareDotScanSlices: cancelled");
     const DotRecord& dot = geometry.dots[q];
     const double l_q = dot.saturated || !dot.measured() ? median_radiance : dot.radiance_dn_per_us;
-    const bool streamed = slices->spill != nullptr;
-    THINSLAB_RETURN_IF_ERROR(measure(frames, dot.position_in_sample_m, l_q, DotName(displayed[q]),
-                                     q % check_stride == 0, [&](int p, double value, double sigma, bool sat) {
-                                       const size_t k = streamed ? p : static_cast<size_t>(p) * nd + q;
-                                       (streamed ? column_value : slices->value)[k] = static_cast<float>(value);
-                                       (streamed ? column_sigma : slices->sigma)[k] = static_cast<float>(sigma);
-                                       if (sat) ++saturated_dots[p];
-                                     }));
-    if (streamed) THINSLAB_RETURN_IF_ERROR(slices->spill->WriteColumn(q, column_value.data(), column_sigma.data()));
+    jobs.push_back({&frames, dot.position_in_sample_m, l_q, DotName(displayed[q]), q % check_stride == 0, q});
     ++q;
   }
-  progress.Report(q);
-  // Validation dots: see validation_by_dot above.
+  // Validation dots (see validation_by_dot above) after the grid's, in the same loop.
   DmfValidationDots& validation = slices->validation;
   const size_t nv = validation_by_dot.size();
   validation.value.assign(static_cast<size_t>(np) * nv, 0.0f);
   validation.sigma.assign(static_cast<size_t>(np) * nv, 0.0f);
   report->slice_bytes += (validation.value.size() + validation.sigma.size()) * sizeof(float);
   for (const auto& [yx, frames] : validation_by_dot) {
-    const size_t v = validation.dot_px.size();
     const Eigen::Vector2d dot_px(yx.second, yx.first);
     const Eigen::Vector3d position = geometry.sample_from_monitor * Eigen::Vector3d(dot_px.x() * monitor.pixel_pitch_m,
                                                                                    dot_px.y() * monitor.pixel_pitch_m, 0);
+    jobs.push_back({&frames, position, median_radiance, "validation " + DotName(dot_px), false,
+                    nd + static_cast<int>(validation.dot_px.size())});
     validation.dot_px.push_back(dot_px);
     validation.positions.push_back(position);
-    THINSLAB_RETURN_IF_ERROR(measure(frames, position, median_radiance, "validation " + DotName(dot_px), false,
-                                     [&](int p, double value, double sigma, bool) {
-                                       validation.value[static_cast<size_t>(p) * nv + v] = static_cast<float>(value);
-                                       validation.sigma[static_cast<size_t>(p) * nv + v] = static_cast<float>(sigma);
-                                     }));
   }
+  // Each column stored in dot order on every process, whichever process measured it (issue #29:
+  // under mpirun the dots are shared out, one per process per round).
+  auto store = [&](const DotJob& job, const DotColumn& column) -> Status {
+    if (job.check) CombineExposureChecks(column.check, &report->exposure_check);  // One bracket for all dots.
+    report->num_frames += column.frames;
+    report->num_exposures = std::max(report->num_exposures, column.exposures);
+    if (job.column >= nd) {
+      const size_t v = job.column - nd;
+      for (int p = 0; p < np; ++p) {
+        validation.value[static_cast<size_t>(p) * nv + v] = column.value[p];
+        validation.sigma[static_cast<size_t>(p) * nv + v] = column.sigma[p];
+      }
+      return Status::Ok();
+    }
+    for (int p = 0; p < np; ++p) saturated_dots[p] += column.saturated[p];
+    if (slices->spill) return slices->spill->WriteColumn(job.column, column.value.data(), column.sigma.data());
+    for (int p = 0; p < np; ++p) {
+      slices->value[static_cast<size_t>(p) * nd + job.column] = column.value[p];
+      slices->sigma[static_cast<size_t>(p) * nd + job.column] = column.sigma[p];
+    }
+    return Status::Ok();
+  };
+  ProcessGroup& group = ProcessGroup::World();
+  ProgressTracker progress(options.progress, "fit dmf: dot frames (HDR merge, Eq. 12)", static_cast<int64_t>(nd));
+  std::map<int, DotColumn> columns;  // The round's, by job.
+  DistributedLoop loop;
+  loop.compute = [&](int begin, int end) -> Status {
+    for (int j = begin; j < end; ++j) THINSLAB_RETURN_IF_ERROR(measure(jobs[j], &columns[j]));
+    return Status::Ok();
+  };
+  loop.pack = [&](int j, ByteWriter* out) {
+    const DotColumn& c = columns[j];
+    out->PutVector(c.value);
+    out->PutVector(c.sigma);
+    out->PutVector(c.saturated);
+    out->PutVector(c.check.reported_us);
+    out->PutVector(c.check.measured_over_reported);
+    out->PutVector(c.check.pixels);
+    out->Put(c.check.max_deviation);
+    out->Put(c.check.measured);
+    out->Put(c.frames);
+    out->Put(c.exposures);
+  };
+  loop.unpack = [&](int j, ByteReader* in) {
+    DotColumn& c = columns[j];
+    return in->GetVector(&c.value) && in->GetVector(&c.sigma) && in->GetVector(&c.saturated) &&
+           in->GetVector(&c.check.reported_us) && in->GetVector(&c.check.measured_over_reported) &&
+           in->GetVector(&c.check.pixels) && in->Get(&c.check.max_deviation) && in->Get(&c.check.measured) &&
+           in->Get(&c.frames) && in->Get(&c.exposures) && c.value.size() == static_cast<size_t>(np) &&
+           c.sigma.size() == c.value.size() && c.saturated.size() == c.value.size();
+  };
+  loop.chunk_done = [&](int begin, int end) -> Status {
+    for (int j = begin; j < end; ++j) THINSLAB_RETURN_IF_ERROR(store(jobs[j], columns[j]));
+    columns.clear();
+    if (!progress.Report(std::min(end, nd))) return Status::Error("PrepareDotScanSlices: cancelled");
+    return Status::Ok();
+  };
+  if (!progress.Report(0)) return Status::Error("PrepareDotScanSlices: cancelled");
+  THINSLAB_RETURN_IF_ERROR(
+      DistributedFor(group, static_cast<int>(jobs.size()), group.size(), "fit dmf: dot frames", loop));
   report->merge_s = Seconds(t);
   report->exposure_warning = report->exposure_check.Warning();
 

@@ -2,6 +2,8 @@
 #include "thinslab/pipeline/dmf_pipeline.h"
 
 #include <cstdio>
+#include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -19,6 +21,7 @@
 #include "thinslab/core/file.h"
 #include "thinslab/core/memory.h"
 #include "thinslab/core/parallel.h"
+#include "thinslab/core/process_group.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
 #include "thinslab/fit/dmf_equivalent_roughness.h"
@@ -214,9 +217,16 @@ Status CheckFitDmfRun(const FitDmfRun& run) {
 
 Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir, FitDmfRun run, std::string* brief) {
   THINSLAB_RETURN_IF_ERROR(CheckFitDmfRun(run));
+  // Under mpirun (issue #29 item 2) every process reads the capture and fits; rank 0 alone stages
+  // and writes the output (the others would clear its staging folder as a killed run's).
+  ProcessGroup& group = ProcessGroup::World();
+  if (group.distributed() && run.ladder) {
+    return Status::Error("--ladder runs on one process (without mpirun, or mpirun -n 1)");
+  }
   // Refused before the work: an output that would replace an input or a folder of the user's.
-  StagedDirectory out(out_dir, "fit dmf", {{session_dir, {"fit"}}});
-  THINSLAB_RETURN_IF_ERROR(out.Init());
+  std::unique_ptr<StagedDirectory> staged;
+  if (group.root()) staged = std::make_unique<StagedDirectory>(out_dir, "fit dmf", std::vector<InputPath>{{session_dir, {"fit"}}});
+  THINSLAB_RETURN_IF_ERROR(group.Agree(staged ? staged->Init() : Status::Ok()));
   Session session;
   THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, run.allow_incomplete_capture, &session));
   run.processing.incomplete_capture =
@@ -237,7 +247,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   run.processing.fit_ndf_resolution = run.fit.point.ndf_resolution;
   run.processing.fit_cluster_fraction = run.fit.cluster ? run.fit.clustering.fraction : 1.0;
   if ((run.processing.max_memory_bytes > 0 || run.processing.stream_band_points > 0) && run.processing.spill_dir.empty()) {
-    run.processing.spill_dir = out.path();
+    // Beside the output: in its staging folder, or (the other processes) in the folder that holds it.
+    const std::string parent = std::filesystem::path(out_dir).parent_path().string();
+    run.processing.spill_dir = staged ? staged->path() : (parent.empty() ? "." : parent);
   }
   // The ladder keeps the NDFs it replaces per point: in memory only.
   if (run.ladder) run.processing.streaming_refused_by = "--ladder";
@@ -267,6 +279,8 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   for (const std::string& w : warnings) std::cerr << "warning: " << w << "\n";
   DmfMaps maps;
   THINSLAB_RETURN_IF_ERROR(FitDualMicrofacetMaps(slices, run.fit, &maps));
+  if (!group.root()) return Status::Ok();  // Every process has the maps; rank 0 writes them.
+  StagedDirectory& out = *staged;
   for (const auto& [x, y] : pixels) {
     if (x < 0 || y < 0 || x >= maps.width || y >= maps.height) {
       return Status::Error("--ndf-pixels: (" + std::to_string(x) + ", " + std::to_string(y) + ") is outside the " +
@@ -508,7 +522,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
                  {"estimated_in_memory_bytes", processing.memory.in_memory_bytes},
                  {"estimated_peak_bytes", processing.memory.streamed_bytes},
                  {"spill_file_bytes", processing.memory.streamed ? processing.memory.spill_file_bytes : 0.0}};
-  j["peak_memory_mib"] = PeakResidentMemoryMiB();
+  j["peak_memory_mib"] = PeakResidentMemoryMiB();  // Of rank 0 (each process holds as much).
+  // How many processes shared the work (mpirun -n N; 1 alone): the maps do not depend on it.
+  j["processes"] = group.size();
   j["timings_s"] = {{"dot_geometry", processing.geometry_s},
                     {"hdr_merge_rectify_eq12", processing.merge_s},
                     {"processing_total", processing.total_s},

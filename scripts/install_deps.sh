@@ -40,6 +40,8 @@ packages=(
   chromium
   blender
   bc
+  libopenmpi-dev
+  openmpi-bin
 )
 
 missing=()

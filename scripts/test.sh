@@ -30,12 +30,12 @@ cmake --build build -j"$jobs"
 # Installed: the CLI finds its data, a downstream project builds against the prefix (issue #25).
 bash scripts/test_install.sh build
 
-# The refit-only tree (issue #25): no device library (Aravis, V4L2, SDL2, libusb, umockdev) and no
-# Google Benchmark is even looked for; the device-free stages' tests (label `refit`) run there,
+# The refit-only tree (issue #25): no device library (Aravis, V4L2, SDL2, libusb, umockdev), no
+# Google Benchmark and no MPI (the one-process build of core/process_group.cc) is even looked for; the device-free stages' tests (label `refit`) run there,
 # and its install serves the downstream project too.
 cmake -S . -B build-refit -G Ninja -DCMAKE_BUILD_TYPE=Release -DTHINSLAB_WERROR=ON -DTHINSLAB_BUILD_BENCH=OFF \
   -DPython3_EXECUTABLE="$python" "${launcher[@]}" \
-  -DTHINSLAB_WITH_ARAVIS=OFF -DTHINSLAB_WITH_V4L2=OFF -DTHINSLAB_WITH_SDL=OFF -DTHINSLAB_WITH_USB=OFF
+  -DTHINSLAB_WITH_ARAVIS=OFF -DTHINSLAB_WITH_V4L2=OFF -DTHINSLAB_WITH_SDL=OFF -DTHINSLAB_WITH_USB=OFF -DTHINSLAB_WITH_MPI=OFF
 if grep -iE "aravis|sdl2|libusb|umockdev|benchmark" build-refit/build.ninja | grep -qv "THINSLAB_WITH_"; then
   echo "thinslab: the refit-only tree refers to a device or benchmark library:" >&2
   grep -ioE "[^ ]*(aravis|sdl2|libusb|umockdev|benchmark)[^ ]*" build-refit/build.ninja | grep -v THINSLAB_WITH_ | sort -u >&2

@@ -13,6 +13,7 @@
 
 #include "tests/testing/json_file.h"
 #include "tests/testing/run_ok.h"
+#include "tests/testing/same_fit.h"
 #include "tests/testing/temp_dir.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/file.h"
@@ -20,38 +21,10 @@
 namespace thinslab {
 namespace {
 
-void ExpectSameExr(const std::string& a, const std::string& b) {
-  Image x, y;
-  ASSERT_TRUE(ReadExr(a, &x).ok()) << a;
-  ASSERT_TRUE(ReadExr(b, &y).ok()) << b;
-  EXPECT_EQ(x.channel_names(), y.channel_names()) << a;
-  ASSERT_EQ(x.data().size(), y.data().size()) << a;
-  size_t differ = 0;
-  for (size_t k = 0; k < x.data().size(); ++k) differ += x.data()[k] != y.data()[k];
-  EXPECT_EQ(differ, 0u) << a << " and " << b << " differ in " << differ << " of " << x.data().size() << " values";
-}
-
-// Everything but the memory figures and timings of the two fits' outputs is the same.
-void ExpectSameFit(const TempDir& dir, const std::string& a, const std::string& b) {
-  ExpectSameExr(dir / (a + "/maps.exr"), dir / (b + "/maps.exr"));
-  ExpectSameExr(dir / (a + "/ndf_atlas.exr"), dir / (b + "/ndf_atlas.exr"));
-  std::string ca, cb;
-  ASSERT_TRUE(ReadFileToString(dir / (a + "/comparison.json"), &ca).ok());
-  ASSERT_TRUE(ReadFileToString(dir / (b + "/comparison.json"), &cb).ok());
-  EXPECT_EQ(ca, cb);
-  const nlohmann::json sa = ReadJsonFile(dir / (a + "/summary.json")), sb = ReadJsonFile(dir / (b + "/summary.json"));
-  for (const char* key :
-       {"status_counts", "validation", "hold_out", "equivalent_ndf", "clustering", "points_fitted_directly"}) {
-    EXPECT_EQ(sa.value(key, nlohmann::json()), sb.value(key, nlohmann::json())) << key;
-  }
-}
-
 TEST(CliDmfStreamed, SameMapsAsInMemoryBudgetHeldNothingLeftBehind) {
   TempDir dir;
   const std::string capture = dir / "capture";
-  RunThinslabOk("sim dot-scan " + capture +
-                " --quiet --grid-nx 10 --grid-ny 10 --validation-dots 6 --photons-k 10 --table-bins 24 "
-                "--camera-width-px 240 --camera-height-px 180");
+  SimulateSmallDotScan(capture);
   const std::string fit = "fit dmf " + capture + " --pitch-mm 2.5 --hold-out true --threads 2";
   RunThinslabOk(fit + " --out " + (dir / "memory"));
   // Bands of 4 grid rows (the grid is 32 points wide): the band edges cut through regions.

@@ -22,10 +22,10 @@ struct RunResult {
   std::string output;
 };
 
-// `args` are appended to the command line as given (a shell parses them); stdin is empty, or
-// the file `stdin_path` (e.g. the operator's Enter presses of `thinslab acquire` at a real rig).
-inline RunResult RunThinslab(const std::string& args, const std::string& stdin_path = "/dev/null") {
-  const std::string command = ThinslabBinary() + " " + args + " 2>&1 <'" + stdin_path + "'";
+// Any command line (a shell parses it), its stdout and stderr combined; stdin is empty, or the
+// file `stdin_path` (e.g. the operator's Enter presses of `thinslab acquire` at a real rig).
+inline RunResult RunShell(const std::string& command_line, const std::string& stdin_path = "/dev/null") {
+  const std::string command = command_line + " 2>&1 <'" + stdin_path + "'";
   RunResult result;
   FILE* pipe = popen(command.c_str(), "r");
   if (pipe == nullptr) return result;
@@ -34,6 +34,11 @@ inline RunResult RunThinslab(const std::string& args, const std::string& stdin_p
   const int status = pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;
+}
+
+// `args` are appended to the command line as given (a shell parses them).
+inline RunResult RunThinslab(const std::string& args, const std::string& stdin_path = "/dev/null") {
+  return RunShell(ThinslabBinary() + " " + args, stdin_path);
 }
 
 }  // namespace thinslab
