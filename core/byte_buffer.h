@@ -23,7 +23,7 @@ class ByteWriter {
   void PutVector(const std::vector<T>& values) {
     static_assert(std::is_trivially_copyable_v<T>, "ByteWriter::PutVector takes vectors of plain values");
     Put<uint64_t>(values.size());
-    bytes_.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T));
+    if (!values.empty()) bytes_.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T));
   }
   void PutString(const std::string& s) {
     Put<uint64_t>(s.size());
@@ -54,7 +54,7 @@ class ByteReader {
     uint64_t n = 0;
     if (!Get(&n) || n > (bytes_.size() - pos_) / sizeof(T)) return false;
     values->resize(n);
-    std::memcpy(values->data(), bytes_.data() + pos_, n * sizeof(T));
+    if (n > 0) std::memcpy(values->data(), bytes_.data() + pos_, n * sizeof(T));  // data() may be null when empty.
     pos_ += n * sizeof(T);
     return true;
   }

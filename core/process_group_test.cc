@@ -129,12 +129,15 @@ TEST(ByteBuffer, ReadsBackWhatWasWrittenAndRefusesAShortMessage) {
   w.Put<int>(7);
   w.PutVector(std::vector<double>{1.5, -2});
   w.PutString("dot");
+  w.PutVector(std::vector<float>());  // Empty: no bytes copied from or into a null pointer.
   const std::string bytes = w.Release();
   ByteReader r(bytes);
   int i = 0;
   std::vector<double> v;
   std::string s;
-  ASSERT_TRUE(r.Get(&i) && r.GetVector(&v) && r.GetString(&s));
+  std::vector<float> empty{1};
+  ASSERT_TRUE(r.Get(&i) && r.GetVector(&v) && r.GetString(&s) && r.GetVector(&empty));
+  EXPECT_TRUE(empty.empty());
   EXPECT_EQ(i, 7);
   EXPECT_EQ(v, (std::vector<double>{1.5, -2}));
   EXPECT_EQ(s, "dot");
