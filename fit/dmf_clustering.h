@@ -25,6 +25,8 @@
 #include <string>
 #include <vector>
 
+#include "thinslab/core/parallel.h"
+
 namespace thinslab {
 
 struct DmfClusteringOptions {
@@ -37,6 +39,8 @@ struct DmfClusteringOptions {
   int subsample = 20000;       // Points used to place the centres.
   int num_neighbors = 4;       // |N_i|.
   uint64_t seed = 1;
+  // Threads of the distance computations (the result does not depend on it).
+  int num_threads = DefaultThreadCount();
   bool Check(std::string* error) const;
 };
 

@@ -218,3 +218,41 @@ TEST(AffineNonNegativeWeights, MatchesBruteForceOnRandomProblems) {
 
 }  // namespace
 }  // namespace thinslab
+
+namespace thinslab {
+namespace {
+
+// The clustering's distance loops run on threads in fixed blocks: the result must not depend on
+// the thread count (fit dmf's maps, under any --threads or mpirun, bit for bit).
+TEST(DmfClusteringThreads, SameClusteringWhateverTheThreads) {
+  constexpr int kPoints = 6000, kNodes = 40;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> uniform(0, 1);
+  Eigen::MatrixXf materials(5, kNodes);
+  for (int m = 0; m < 5; ++m) {
+    for (int n = 0; n < kNodes; ++n) materials(m, n) = uniform(rng);
+  }
+  Eigen::MatrixXf shapes(kPoints, kNodes);
+  for (int p = 0; p < kPoints; ++p) {
+    const float t = uniform(rng);
+    shapes.row(p) = t * materials.row(p % 5) + (1 - t) * materials.row((p / 5) % 5);
+    for (int n = 0; n < kNodes; ++n) shapes(p, n) += 0.01f * uniform(rng);
+  }
+  std::vector<uint8_t> valid(kPoints, 1);
+  valid[17] = 0;
+  DmfClusteringOptions options;
+  options.subsample = 2500;  // Seeding over three slabs of rows, assignment over three blocks.
+  options.num_threads = 1;
+  const DmfClustering one = ClusterSlices(shapes, valid, options);
+  options.num_threads = 3;
+  const DmfClustering three = ClusterSlices(shapes, valid, options);
+  EXPECT_EQ(one.representatives.size(), 64u);
+  EXPECT_EQ(one.representatives, three.representatives);
+  EXPECT_EQ(one.cluster, three.cluster);
+  EXPECT_EQ(one.neighbors, three.neighbors);
+  EXPECT_EQ(one.weights, three.weights);
+  EXPECT_EQ(one.mean_weight_residual, three.mean_weight_residual);
+}
+
+}  // namespace
+}  // namespace thinslab

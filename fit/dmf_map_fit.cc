@@ -410,7 +410,9 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   std::vector<int> direct;
   t = std::chrono::steady_clock::now();
   if (options.cluster) {
-    DmfShapeClusterer clusterer(fit_me, options.clustering);
+    DmfClusteringOptions clustering = options.clustering;
+    clustering.num_threads = options.num_threads;
+    DmfShapeClusterer clusterer(fit_me, clustering);
     const std::vector<int>& sample = clusterer.pca_sample();
     Eigen::MatrixXf sample_shapes(sample.size(), nodes);
     if (!streamed) {
