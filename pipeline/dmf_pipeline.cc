@@ -225,7 +225,9 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   }
   // Refused before the work: an output that would replace an input or a folder of the user's.
   std::unique_ptr<StagedDirectory> staged;
-  if (group.root()) staged = std::make_unique<StagedDirectory>(out_dir, "fit dmf", std::vector<InputPath>{{session_dir, {"fit"}}});
+  if (group.root()) {
+    staged = std::make_unique<StagedDirectory>(out_dir, "fit dmf", std::vector<InputPath>{{session_dir, {"fit"}}});
+  }
   THINSLAB_RETURN_IF_ERROR(group.Agree(staged ? staged->Init() : Status::Ok()));
   Session session;
   THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, run.allow_incomplete_capture, &session));
