@@ -4,9 +4,12 @@
 #include <glog/logging.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdlib>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 
 #include "thinslab/core/math.h"
 
@@ -32,25 +35,31 @@ Image BuildBoardKernel(const std::function<double(double mu)>& radiance, const B
     // Irradiance per unit incident irradiance: A_px L mu^4 / D^2 with A_px / D^2 = 1 / d_px^2.
     return radiance(mu) * Sqr(Sqr(mu)) / Sqr(d_px);
   };
-  for (int j = -radius; j <= radius; ++j) {
-    for (int i = -radius; i <= radius; ++i) {
+  // Box times box: the offset between two of the n uniform sub-positions of a source and a board
+  // pixel is k / n with multiplicity n - |k|, k = -(n-1) .. n-1; weights of the n^2 pairs.
+  constexpr int n = 4;
+  std::array<double, 2 * n - 1> pair_weight{};
+  for (int k = -(n - 1); k <= n - 1; ++k) pair_weight[k + n - 1] = static_cast<double>(n - std::abs(k)) / (n * n);
+  // The lobe depends on the offset's length only, so the kernel has the square's eight
+  // symmetries: each value is computed once, for 0 <= j <= i, and mirrored (exactly symmetric).
+  for (int i = 0; i <= radius; ++i) {
+    for (int j = 0; j <= i; ++j) {
       double value = 0;
       if (std::hypot(i, j) < near_radius_px) {
-        const int n = 4;
-        for (int a = 0; a < n; ++a) {
-          for (int b = 0; b < n; ++b) {
-            for (int c = 0; c < n; ++c) {
-              for (int d = 0; d < n; ++d) {
-                value += lobe(i + (a - b) / static_cast<double>(n), j + (c - d) / static_cast<double>(n));
-              }
-            }
+        for (int kx = -(n - 1); kx <= n - 1; ++kx) {
+          for (int ky = -(n - 1); ky <= n - 1; ++ky) {
+            value += pair_weight[kx + n - 1] * pair_weight[ky + n - 1] *
+                     lobe(i + kx / static_cast<double>(n), j + ky / static_cast<double>(n));
           }
         }
-        value /= n * n * n * n;
       } else {
         value = lobe(i, j);
       }
-      kernel.at(i + radius, j + radius) = static_cast<float>(value);
+      for (const auto& [x, y] : {std::pair{i, j}, std::pair{j, i}}) {
+        for (const int sx : {-1, 1}) {
+          for (const int sy : {-1, 1}) kernel.at(radius + sx * x, radius + sy * y) = static_cast<float>(value);
+        }
+      }
     }
   }
   return kernel;
