@@ -1,27 +1,27 @@
 // SPDX-License-Identifier: Apache-2.0
 // `thinslab sim laser` and `thinslab fit phase` (pipeline/phase_pipeline.h): the laser-lobe
 // measurement of g (Gu et al. 2007, Sec. 5.2).
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "thinslab/app/calibration_options.h"
 #include "thinslab/app/capture_options.h"
+#include "thinslab/app/command_progress.h"
 #include "thinslab/app/commands.h"
-#include "thinslab/fit/laser_lobe_ladder.h"
 #include "thinslab/app/option_parser.h"
-#include "thinslab/pipeline/prediction_report.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/math.h"
 #include "thinslab/core/plot.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
+#include "thinslab/fit/laser_lobe_ladder.h"
+#include "thinslab/pipeline/prediction_report.h"
 #include "thinslab/sim/laser_lobe_rig.h"
 
 namespace thinslab {
@@ -150,6 +150,7 @@ int RunSimLaser(int argc, char** argv) {
   rig.beam_radius_m = beam_radius_mm * 1e-3;
   rig.beam_offset_m = Eigen::Vector2d(offset_x_mm, offset_y_mm) * 1e-3;
   NewFolderGuard new_output(out_dir);
+  options.progress = CommandProgress();
   if (status.ok()) status = SynthesizeLaserLobeSession(options, out_dir);
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";

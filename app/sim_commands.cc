@@ -87,6 +87,7 @@ int RunSimShadowMaps(int argc, char** argv) {
   Image tau;
   NewFolderGuard new_output(out_dir);
   if (status.ok()) status = LoadOrGenerateTau(tau_path, options.rig.seed, &tau);
+  options.progress = CommandProgress();
   if (status.ok()) status = SynthesizeShadowMapSession(options, tau, out_dir);
   if (!status.ok()) {
     std::cerr << "error: " << status.message() << "\n";

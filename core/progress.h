@@ -43,6 +43,8 @@ class ProgressTracker {
   bool Report(int64_t done) {
     if (cancelled_) return false;
     if (!callback_) return true;
+    // The same count again (a stage's last item reported by two loops): nothing new to say.
+    if (reported_ && std::clamp<int64_t>(done, 0, update_.total) == update_.done) return true;
     const double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     const bool edge = done <= 0 || done >= update_.total || !reported_;
     if (!edge && now - last_report_s_ < min_interval_s_) return true;

@@ -186,7 +186,9 @@ DmfClustering ClusterSlices(const Eigen::MatrixXf& shapes, const std::vector<uin
   return clusterer.Cluster();
 }
 
-DmfClustering DmfShapeClusterer::Cluster() {
+DmfClustering DmfShapeClusterer::Cluster(ProgressTracker* progress) {
+  int step = kProjectionSteps;
+  auto next_step = [&]() { return progress == nullptr || progress->Report(++step); };
   DmfClustering out;
   out.num_neighbors = options_.num_neighbors;
   out.neighbors.assign(static_cast<size_t>(num_points_) * options_.num_neighbors, -1);
@@ -236,6 +238,7 @@ DmfClustering DmfShapeClusterer::Cluster() {
       centres.row(c) = sub.row(pick);
     }
   }
+  if (!next_step()) return out;
   std::vector<int> label(sub.rows(), 0);
   for (int it = 0; it < options.kmeans_iterations; ++it) {
     ForEachDistanceRow(sub, centres, options.num_threads, [&](int s, const auto& d) { d.minCoeff(&label[s]); });
@@ -248,6 +251,7 @@ DmfClustering DmfShapeClusterer::Cluster() {
     for (int c = 0; c < num_clusters; ++c) {
       if (count[c] > 0) centres.row(c) = sum.row(c) / count[c];
     }
+    if (!next_step()) return out;
   }
 
   // Assign every point (on the threads); the member nearest its centre represents the cluster
@@ -268,6 +272,7 @@ DmfClustering DmfShapeClusterer::Cluster() {
     }
   }
   std::vector<float>().swap(centre_d);
+  if (!next_step()) return out;
   std::vector<int> rep_rows;
   for (int c = 0; c < num_clusters; ++c) {
     if (nearest_point[c] >= 0) rep_rows.push_back(nearest_point[c]);
@@ -314,6 +319,7 @@ DmfClustering DmfShapeClusterer::Cluster() {
     ++residual_count;
   }
   out.mean_weight_residual = residual_count > 0 ? residual_sum / residual_count : 0;
+  next_step();
   return out;
 }
 

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "thinslab/core/parallel.h"
+#include "thinslab/core/progress.h"
 
 namespace thinslab {
 
@@ -75,8 +76,14 @@ class DmfShapeClusterer {
   // Row `row` of `shapes` is the shape of valid point p (after FitProjection; thread-safe for
   // distinct points).
   void Project(int p, const Eigen::MatrixXf& shapes, int row);
-  // After every valid point was projected.
-  DmfClustering Cluster();
+  // After every valid point was projected. Reports to `progress` (optional) the steps done of
+  // num_steps(), counting the projection's kProjectionSteps as done; stops early once cancelled
+  // (progress->cancelled(): the result is then incomplete).
+  DmfClustering Cluster(ProgressTracker* progress = nullptr);
+  // The principal components and the projection, the k-means++ seeding, the Lloyd iterations,
+  // the assignment of every point and the Eq. 20 neighbours.
+  static constexpr int kProjectionSteps = 2;
+  int num_steps() const { return kProjectionSteps + 1 + options_.kmeans_iterations + 2; }
 
  private:
   using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;

@@ -1,19 +1,19 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/fit/dmf_map_fit.h"
 
-#include "thinslab/fit/dmf_slice_shape.h"
-
 #include <glog/logging.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <random>
 #include <sstream>
 
 #include "thinslab/core/math.h"
 #include "thinslab/core/parallel.h"
 #include "thinslab/core/process_group.h"
+#include "thinslab/fit/dmf_slice_shape.h"
 
 namespace thinslab {
 namespace {
@@ -28,6 +28,25 @@ double Seconds(std::chrono::steady_clock::time_point since) {
 constexpr int kPointsPerProcessRound = 512;
 int PointChunk(const ProcessGroup& group, int count) {
   return group.distributed() ? kPointsPerProcessRound * group.size() : count;
+}
+
+// The compute and chunk_done of a band's loop over items [0, n), `item(k)` each, with progress:
+// alone, reported after every item (ParallelFor); in a group, after every round (each process
+// reports the same counts). `done_before`: the stage's items in the bands before.
+void SetReportedCompute(ProcessGroup& group, int num_threads, ProgressTracker* progress, int64_t done_before,
+                        const std::function<void(int k)>& item, DistributedLoop* loop) {
+  loop->compute = [&group, num_threads, progress, done_before, item](int begin, int end) {
+    const bool going = ParallelFor(
+        end - begin, num_threads, [&](int k) { item(begin + k); }, group.distributed() ? nullptr : progress,
+        done_before + begin);
+    return going ? Status::Ok() : Status::Error("FitDualMicrofacetMaps: cancelled");
+  };
+  loop->chunk_done = [&group, progress, done_before](int, int end) {
+    if (group.distributed() && !progress->Report(done_before + end)) {
+      return Status::Error("FitDualMicrofacetMaps: cancelled");
+    }
+    return Status::Ok();
+  };
 }
 
 }  // namespace
@@ -339,6 +358,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   auto shape_of = [&](int first, int p) -> float* {
     return shape_file ? band_shapes.data() + static_cast<size_t>(p - first) * nodes : nullptr;
   };
+  ProgressTracker separation_progress(options.progress, "fit dmf: diffuse separation (Dai Eq. 14)", np);
   THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
     if (shape_file) band_shapes.assign(static_cast<size_t>(count) * nodes, 0.0f);
     auto separate = [&](int p) {
@@ -364,10 +384,8 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
       }
     };
     DistributedLoop loop;
-    loop.compute = [&](int begin, int end) {
-      ParallelFor(end - begin, options.num_threads, [&](int k) { separate(first + begin + k); });
-      return Status::Ok();
-    };
+    SetReportedCompute(
+        group, options.num_threads, &separation_progress, first, [&](int k) { separate(first + k); }, &loop);
     loop.pack = [&](int k, ByteWriter* out) {
       const int p = first + k;
       out->Put(maps->fits[p].status);
@@ -413,6 +431,9 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     DmfClusteringOptions clustering = options.clustering;
     clustering.num_threads = options.num_threads;
     DmfShapeClusterer clusterer(fit_me, clustering);
+    ProgressTracker clustering_progress(options.progress, "fit dmf: clustering (PCA, k-means, Dai Eq. 20)",
+                                        clusterer.num_steps());
+    clustering_progress.Report(0);
     const std::vector<int>& sample = clusterer.pca_sample();
     Eigen::MatrixXf sample_shapes(sample.size(), nodes);
     if (!streamed) {
@@ -447,7 +468,11 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         });
       }
     }
-    maps->clustering = clusterer.Cluster();
+    if (!clustering_progress.Report(DmfShapeClusterer::kProjectionSteps)) {
+      return Status::Error("FitDualMicrofacetMaps: cancelled");
+    }
+    maps->clustering = clusterer.Cluster(&clustering_progress);
+    if (clustering_progress.cancelled()) return Status::Error("FitDualMicrofacetMaps: cancelled");
     direct = maps->clustering.representatives;
   } else {
     for (int p = 0; p < np; ++p) {
@@ -483,21 +508,10 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     }
     const int n = static_cast<int>(in_band.size());
     DistributedLoop loop;
-    // Alone: progress after each point; in a group, after each round.
-    loop.compute = [&](int begin, int end) {
-      if (!ParallelFor(
-              end - begin, options.num_threads, [&](int k) { fit_direct(in_band[begin + k]); },
-              group.distributed() ? nullptr : &progress, fitted + begin)) {
-        return Status::Error("FitDualMicrofacetMaps: cancelled");
-      }
-      return Status::Ok();
-    };
+    SetReportedCompute(
+        group, options.num_threads, &progress, fitted, [&](int k) { fit_direct(in_band[k]); }, &loop);
     loop.pack = [&](int k, ByteWriter* out) { PackDmfPointFit(maps->fits[in_band[k]], out); };
     loop.unpack = [&](int k, ByteReader* in) { return UnpackDmfPointFit(in, &maps->fits[in_band[k]]); };
-    loop.chunk_done = [&](int, int end) {
-      if (group.distributed() && !progress.Report(fitted + end)) return Status::Error("FitDualMicrofacetMaps: cancelled");
-      return Status::Ok();
-    };
     THINSLAB_RETURN_IF_ERROR(DistributedFor(group, n, PointChunk(group, n), "fit dmf: point fits (Eqs. 14-19)", loop));
     fitted += n;
     return Status::Ok();
@@ -511,6 +525,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     const DmfClustering& c = maps->clustering;
     std::vector<uint8_t> is_rep(np, 0);
     for (int p : c.representatives) is_rep[p] = 1;
+    ProgressTracker interpolation_progress(options.progress, "fit dmf: interpolation (Dai Eqs. 20-22)", np);
     THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
       auto interpolate = [&](int p) {
         if (!fit_me[p] || is_rep[p]) return;
@@ -576,10 +591,8 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         maps->fits[p] = f;
       };
       DistributedLoop loop;
-      loop.compute = [&](int begin, int end) {
-        ParallelFor(end - begin, options.num_threads, [&](int k) { interpolate(first + begin + k); });
-        return Status::Ok();
-      };
+      SetReportedCompute(
+          group, options.num_threads, &interpolation_progress, first, [&](int k) { interpolate(first + k); }, &loop);
       // Only the interpolated points: every process already has the others' fits.
       loop.pack = [&](int k, ByteWriter* out) {
         const int p = first + k;

@@ -21,6 +21,7 @@
 #include "thinslab/core/file.h"
 #include "thinslab/core/memory.h"
 #include "thinslab/core/parallel.h"
+#include "thinslab/core/progress.h"
 #include "thinslab/core/process_group.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
@@ -111,8 +112,12 @@ Status RunLadder(const DmfSliceSet& slices, DmfMaps* maps_out, const DmfMapFitOp
     }
   }
   std::vector<LadderResult> results(points.size());
-  ParallelFor(static_cast<int>(points.size()), fit.num_threads,
-              [&](int k) { results[k] = FitLadder(slices.Slice(points[k]), grid, options); });
+  ProgressTracker progress(fit.progress, "fit dmf: model ladder (rungs 0-5)", static_cast<int64_t>(points.size()));
+  if (!ParallelFor(
+          static_cast<int>(points.size()), fit.num_threads,
+          [&](int k) { results[k] = FitLadder(slices.Slice(points[k]), grid, options); }, &progress)) {
+    return Status::Error("fit dmf --ladder: cancelled");
+  }
   out->image = Image(slices.width, slices.height, {"rung", "held_out_single_interface", "held_out_dmf_analytic",
                                                    "held_out_dmf_tabulated", "noise_floor"}, -1.0f);
   // Pixel clusters of the ladder: tiles of tile x tile grid points, whose evaluated points pool

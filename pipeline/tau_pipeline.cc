@@ -131,7 +131,15 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
     std::string failed;
     TauFitOptions half_fit = fit;
     half_fit.trace = PixelTrace();  // --pixel follows the fit of all frames only.
+    bool cancelled = false;
     for (int k = 0; k < 2 && failed.empty(); ++k) {
+      if (fit.progress) {
+        half_fit.progress = [&fit, &cancelled, k](ProgressUpdate update) {
+          update.stage += k == 0 ? " (split half: even frames)" : " (split half: odd frames)";
+          cancelled = cancelled || !fit.progress(update);
+          return !cancelled;
+        };
+      }
       RectifiedShadowMaps half = data;
       half.halves.clear();
       half.shadow = data.halves[k].shadow;
@@ -140,6 +148,7 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
       half.reference_variance = data.halves[k].reference_variance;
       TauFitSummary half_summary;
       const Status fitted = FitTau(half_fit, half, &half_maps[k], &half_summary);
+      if (cancelled) return fitted.ok() ? Status::Error(session_dir + ": fit tau cancelled") : fitted;
       if (!fitted.ok()) failed = (k == 0 ? "even frames: " : "odd frames: ") + fitted.message();
     }
     if (!failed.empty()) {

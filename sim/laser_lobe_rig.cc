@@ -202,9 +202,13 @@ Status SynthesizeLaserLobeSession(const SyntheticLaserSessionOptions& options, c
   THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "laser_lobe", rig->rig_info(), &writer));
   LaserLobeSessionOptions session = options.session;
   session.sync = SyncForSensor(session.sync, options.rig.sensor);
-  THINSLAB_RETURN_IF_ERROR(RunLaserLobeSession(session, rig->camera(), rig->laser(), rig->flat_source(),
-                                               rig->sample_changer(), &writer));
-  THINSLAB_RETURN_IF_ERROR(writer.Save());
+  THINSLAB_RETURN_IF_ERROR(RunReportedSimulation(
+      "sim laser: frames rendered",
+      static_cast<int64_t>(PlanLaserLobeSession(session, rig->flat_source()->refresh_period_s()).size()),
+      options.progress, session_dir, &writer, [&]() {
+        return RunLaserLobeSession(session, rig->camera(), rig->laser(), rig->flat_source(), rig->sample_changer(),
+                                   &writer);
+      }));
   const std::string truth_dir = JoinPath(session_dir, "ground_truth");
   THINSLAB_RETURN_IF_ERROR(CreateDirectories(truth_dir));
   nlohmann::json j;

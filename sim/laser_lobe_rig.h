@@ -13,6 +13,7 @@
 
 #include "thinslab/acquire/laser_lobe_session.h"
 #include "thinslab/core/image.h"
+#include "thinslab/core/progress.h"
 #include "thinslab/core/session.h"
 #include "thinslab/sim/layer_monte_carlo.h"
 #include "thinslab/sim/sim_board_camera.h"
@@ -84,6 +85,8 @@ struct SyntheticLaserSessionOptions {
   SimLaserLobeOptions rig;
   LaserLobeSessionOptions session;
   std::string name = "sim_laser_lobe";
+  // Reports the frames rendered of those planned; returning false cancels (core/progress.h).
+  ProgressCallback progress;
 };
 
 // Runs the unchanged acquisition script on the simulated rig into a new session folder and

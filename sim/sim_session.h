@@ -5,10 +5,12 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "thinslab/acquire/display_sync.h"
 #include "thinslab/acquire/session_writer.h"
+#include "thinslab/core/progress.h"
 #include "thinslab/core/session.h"
 #include "thinslab/core/version.h"
 #include "thinslab/sim/sensor_model.h"
@@ -31,6 +33,28 @@ inline Status OpenSimulatedSession(const std::string& session_dir, const std::st
     if (camera.linear_frames()) camera.gain_e_per_dn = 0;
   }
   return writer->Open(session_dir, header);
+}
+
+// Runs a simulated capture's acquisition script with its frames reported to `callback` as
+// `stage` (frames written of `planned_frames`); returning false from the callback stops the script
+// at its next frame. The manifest is saved either way (the frames written are kept), and a
+// cancelled run is an error ending in "cancelled" naming the folder.
+inline Status RunReportedSimulation(const std::string& stage, int64_t planned_frames, const ProgressCallback& callback,
+                                    const std::string& session_dir, SessionWriter* writer,
+                                    const std::function<Status()>& script) {
+  ProgressTracker progress(callback, stage, planned_frames);
+  writer->set_observer([&]() { progress.Report(writer->steps_claimed()); });
+  writer->set_stop_check([&]() { return progress.cancelled() ? std::string("cancelled") : std::string(); });
+  const Status ran = script();
+  writer->set_observer(nullptr);
+  writer->set_stop_check(nullptr);
+  if (progress.cancelled()) {
+    THINSLAB_RETURN_IF_ERROR(writer->Save());
+    return Status::Error(session_dir + ": the capture is incomplete (" + std::to_string(writer->steps_claimed()) +
+                         " of " + std::to_string(planned_frames) + " frames written): " + stage + " cancelled");
+  }
+  THINSLAB_RETURN_IF_ERROR(ran);
+  return writer->Save();
 }
 
 // The display-camera synchronisation's noise model for a simulated sensor: its read noise in DN

@@ -230,17 +230,11 @@ Status SynthesizeDotScanSession(const SyntheticDotScanOptions& options, const st
   SessionWriter writer;
   THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "dot_scan", rig, &writer));
   // The frames are most of the time at the paper's size (docs/benchmarks.md): report them.
-  ProgressTracker progress(options.progress, "sim dot-scan: frames rendered",
-                           static_cast<int64_t>(PlanDotScan(session, monitor->refresh_period_s()).size()));
-  writer.set_observer([&]() { progress.Report(writer.steps_claimed()); });
-  writer.set_stop_check([&]() { return progress.cancelled() ? std::string("cancelled") : std::string(); });
-  THINSLAB_RETURN_IF_ERROR(
-      RunDotScanSession(session, monitor->camera(), monitor.get(), monitor->sample_changer(), &writer));
-  THINSLAB_RETURN_IF_ERROR(writer.Save());
-  if (progress.cancelled()) {
-    return Status::Error(session_dir + ": sim dot-scan cancelled after " + std::to_string(writer.steps_claimed()) +
-                         " frames (the frames written so far are kept, the capture is incomplete)");
-  }
+  THINSLAB_RETURN_IF_ERROR(RunReportedSimulation(
+      "sim dot-scan: frames rendered", static_cast<int64_t>(PlanDotScan(session, monitor->refresh_period_s()).size()),
+      options.progress, session_dir, &writer, [&]() {
+        return RunDotScanSession(session, monitor->camera(), monitor.get(), monitor->sample_changer(), &writer);
+      }));
   const double acquisition_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   THINSLAB_RETURN_IF_ERROR(WriteDotScanTruth(options, *sample, *monitor, acquisition_s, session_dir));

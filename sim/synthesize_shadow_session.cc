@@ -21,9 +21,10 @@ Status SynthesizeShadowMapSession(const SyntheticShadowSessionOptions& options, 
   THINSLAB_RETURN_IF_ERROR(OpenSimulatedSession(session_dir, options.name, "shadow_map", rig->rig_info(), &writer));
   ShadowMapSessionOptions session = options.session;
   session.sync = SyncForSensor(session.sync, options.rig.sensor);
-  THINSLAB_RETURN_IF_ERROR(
-      RunShadowMapSession(session, rig->camera(), rig->projector(), rig->sample_changer(), &writer));
-  THINSLAB_RETURN_IF_ERROR(writer.Save());
+  THINSLAB_RETURN_IF_ERROR(RunReportedSimulation(
+      "sim shadow-maps: frames rendered", static_cast<int64_t>(PlanShadowMapSession(session).size()), options.progress,
+      session_dir, &writer,
+      [&]() { return RunShadowMapSession(session, rig->camera(), rig->projector(), rig->sample_changer(), &writer); }));
 
   const std::string truth_dir = JoinPath(session_dir, "ground_truth");
   THINSLAB_RETURN_IF_ERROR(CreateDirectories(truth_dir));

@@ -9,6 +9,7 @@
 
 #include "thinslab/acquire/shadow_map_session.h"
 #include "thinslab/core/image.h"
+#include "thinslab/core/progress.h"
 #include "thinslab/core/status.h"
 #include "thinslab/sim/shadow_map_rig.h"
 
@@ -18,6 +19,8 @@ struct SyntheticShadowSessionOptions {
   SimShadowMapOptions rig;
   ShadowMapSessionOptions session;
   std::string name = "sim_shadow_map";
+  // Reports the frames rendered of those planned; returning false cancels (core/progress.h).
+  ProgressCallback progress;
 };
 
 // `session_dir` must not exist yet (or be empty).

@@ -28,8 +28,18 @@ TEST(CliDmfStreamed, SameMapsAsInMemoryBudgetHeldNothingLeftBehind) {
   const std::string fit = "fit dmf " + capture + " --pitch-mm 2.5 --hold-out true --threads 2";
   RunThinslabOk(fit + " --out " + (dir / "memory"));
   // Bands of 4 grid rows (the grid is 32 points wide): the band edges cut through regions.
-  const RunResult streamed = RunThinslabOk(fit + " --stream-band-points 128 --out " + (dir / "streamed"));
+  const RunResult streamed =
+      RunThinslabOk(fit + " --stream-band-points 128 --verbose --out " + (dir / "streamed"));
   EXPECT_NE(streamed.output.find("streamed in bands of 128 points"), std::string::npos) << streamed.output;
+  // Every stage of the fit reports its progress, over all bands (issue #26 item 4): the last
+  // line of each counts the whole grid (32 x 32 points) or all its steps.
+  for (const char* done : {"fit dmf: dot frames (HDR merge, Eq. 12): 100/100",
+                           "fit dmf: diffuse separation (Dai Eq. 14): 1024/1024",
+                           "fit dmf: clustering (PCA, k-means, Dai Eq. 20): 20/20",
+                           "fit dmf: interpolation (Dai Eqs. 20-22): 1024/1024"}) {
+    EXPECT_NE(streamed.output.find(done), std::string::npos) << done << "\n" << streamed.output;
+  }
+  EXPECT_NE(streamed.output.find("fit dmf: point fits (Dai Eqs. 14-19): "), std::string::npos) << streamed.output;
   const nlohmann::json memory = ReadJsonFile(dir / "memory/summary.json")["memory"];
   const nlohmann::json banded = ReadJsonFile(dir / "streamed/summary.json")["memory"];
   EXPECT_FALSE(memory["streamed"].get<bool>()) << memory.dump();

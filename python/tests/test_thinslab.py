@@ -168,6 +168,13 @@ def test_progress_of_simulations_and_calibrations(shadow_capture, tmp_path):
         thinslab.run("sim", "dot-scan", str(tmp_path / "dots_cancelled"), grid_nx=4, grid_ny=4, photons_k=2,
                      camera_width_px=120, camera_height_px=90, table_bins=16, progress=lambda u: u["done"] < 3)
     updates.clear()
+    thinslab.sim("shadow-maps", str(tmp_path / "shadow"), progress=lambda u: updates.append(u) or True, **SMALL_SHADOW)
+    assert updates[-1]["stage"] == "sim shadow-maps: frames rendered"
+    assert updates[-1]["done"] == updates[-1]["total"] >= 4
+    with pytest.raises(thinslab.ThinslabError, match="cancelled"):
+        thinslab.sim("shadow-maps", str(tmp_path / "shadow_cancelled"), progress=lambda u: u["done"] < 2,
+                     **SMALL_SHADOW)
+    updates.clear()
     thinslab.run("calib", "hdr", shadow_capture, out=str(tmp_path / "hdr"), progress=lambda u: updates.append(u) or True)
     assert updates[-1]["stage"] == "calib hdr: groups merged"
     assert updates[-1]["done"] == updates[-1]["total"] >= 2
