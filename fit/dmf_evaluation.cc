@@ -252,7 +252,8 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps, co
   for (size_t r = 0; r < regions.size(); ++r) out[1 + r].region = regions[r].name;
   if (std::none_of(use.begin(), use.end(), [](uint8_t u) { return u != 0; })) return Status::Ok();
   const DmfNdfGrid grid(maps.ndf_resolution);
-  std::vector<double> num(out.size(), 0), den(out.size(), 0), noise(out.size(), 0);
+  std::vector<double> num(out.size(), 0), den(out.size(), 0), noise(out.size(), 0), unsampled_num(out.size(), 0);
+  std::vector<std::vector<double>> point_rms(out.size());
   auto points = [&](int first, int count) {
     for (int p = first; p < first + count; ++p) {
       const DmfPointFit& stored = maps.fits[p];
@@ -267,6 +268,13 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps, co
         if (use[v]) peak = std::max(peak, value[v] - stored.rho_d);
       }
       if (!(peak > 0)) continue;
+      // The lobe the fit saw: the point's highest training dot.
+      const float* grid_values = slices.PointValues(p);
+      double training_peak = 0;
+      for (size_t q = 0; q < slices.train.size(); ++q) {
+        if (slices.train[q] != 0) training_peak = std::max(training_peak, grid_values[q] - stored.rho_d);
+      }
+      const bool unsampled_peak = peak > kUnsampledPeakFactor * training_peak;
       DmfPointFit rebuilt;
       const DmfPointFit& fit = stored.log_ndf.empty() ? (rebuilt = maps.FitWithNdf(p)) : stored;
       double point_num = 0, point_den = 0, point_noise = 0;
@@ -287,6 +295,11 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps, co
         num[k] += point_num;
         den[k] += point_den;
         noise[k] += point_noise;
+        if (point_den > 0) point_rms[k].push_back(std::sqrt(point_num / point_den));
+        if (unsampled_peak) {
+          ++out[k].unsampled_peak_points;
+          unsampled_num[k] += point_num;
+        }
       };
       add(0);
       for (size_t r = 0; r < regions.size(); ++r) {
@@ -305,22 +318,35 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps, co
     if (!(den[k] > 0)) continue;
     out[k].relative_rms = std::sqrt(num[k] / den[k]);
     out[k].noise_relative_rms = std::sqrt(noise[k] / den[k]);
+    out[k].unsampled_peak_error_share = num[k] > 0 ? unsampled_num[k] / num[k] : 0;
+    std::vector<double>& r = point_rms[k];
+    if (!r.empty()) {
+      std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+      out[k].median_point_relative_rms = r[r.size() / 2];
+    }
   }
   return Status::Ok();
 }
 }  // namespace
 
-std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
-                                                       const std::vector<DmfTruthRegion>& regions,
-                                                       double lobe_fraction) {
+Status EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
+                              const std::vector<DmfTruthRegion>& regions, double lobe_fraction,
+                              std::vector<DmfValidationError>* out) {
   const DmfValidationDots& validation = slices.validation;
   const size_t nv = validation.positions.size();
-  std::vector<DmfValidationError> out;
-  const Status status = EvaluateDotPredictions(
+  // Streamed: the training dots' values (each point's training peak) are read band by band.
+  return EvaluateDotPredictions(
       slices, maps, regions, lobe_fraction, validation.positions,
       [&](int p) { return validation.value.data() + static_cast<size_t>(p) * nv; },
       [&](int p) { return validation.sigma.empty() ? nullptr : validation.sigma.data() + static_cast<size_t>(p) * nv; },
-      std::vector<uint8_t>(nv, 1), false, &out);
+      std::vector<uint8_t>(nv, 1), slices.spill != nullptr, out);
+}
+
+std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
+                                                       const std::vector<DmfTruthRegion>& regions,
+                                                       double lobe_fraction) {
+  std::vector<DmfValidationError> out;
+  const Status status = EvaluateValidationDots(slices, maps, regions, lobe_fraction, &out);
   CHECK(status.ok()) << status.message();  // In memory: nothing to read.
   return out;
 }

@@ -94,16 +94,31 @@ std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy);
 // the points with a fitted model (status ok or interpolated):
 //   relative_rms = sqrt(sum (predicted - measured)^2 / sum (measured - rho_d)^2),
 // and beside it what noise alone would give, sqrt(sum sigma^2 / sum (measured - rho_d)^2).
+//
+// The pooled figure is dominated by the brightest measurements. A point whose predicted dot is
+// more than kUnsampledPeakFactor times above every training dot of that point has a lobe peak
+// between the training dots (a specular component, a point mixing a smooth and a rough region
+// at a region edge): no fit of those dots can predict it, and one such dot can outweigh all other
+// points. Those points are counted, with their share of the pooled squared error, and the median
+// of the points' own relative RMS is given beside the pooled one.
+inline constexpr double kUnsampledPeakFactor = 3;
 struct DmfValidationError {
   std::string region;  // "all", or a ground-truth region's name.
   int points = 0, pairs = 0;
   double relative_rms = -1, noise_relative_rms = -1;  // -1: no pair.
+  double median_point_relative_rms = -1;              // -1: no pair.
+  int unsampled_peak_points = 0;                      // Points with a peak between training dots.
+  double unsampled_peak_error_share = 0;              // Their share of sum (predicted - measured)^2.
 };
 // "all" first, then one entry per region of `regions` (ground truth of a simulated capture; may
 // be empty), points at least one grid pitch inside it as CompareDmfWithTruth.
+// (The vector form: slices in memory; the Status form reads a streamed fit's bands.)
 std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
                                                        const std::vector<DmfTruthRegion>& regions,
                                                        double lobe_fraction = 0.1);
+Status EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
+                              const std::vector<DmfTruthRegion>& regions, double lobe_fraction,
+                              std::vector<DmfValidationError>* out);
 
 // The same for the grid's held-out dots (DmfSliceSet::train 0; `fit dmf --hold-out`): reported
 // whenever dots are held out, with or without the model ladder.

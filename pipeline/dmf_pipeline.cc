@@ -1,28 +1,25 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/pipeline/dmf_pipeline.h"
 
-#include <cstdio>
-#include <filesystem>
-#include <memory>
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <tuple>
+#include <utility>
 
-#include "thinslab/pipeline/calibration_summary.h"
-#include "thinslab/pipeline/capture_reading.h"
-#include "thinslab/pipeline/folder_report.h"
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/false_color.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/memory.h"
 #include "thinslab/core/parallel.h"
-#include "thinslab/core/progress.h"
 #include "thinslab/core/process_group.h"
+#include "thinslab/core/progress.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/core/version.h"
 #include "thinslab/fit/dmf_equivalent_roughness.h"
@@ -30,6 +27,9 @@
 #include "thinslab/fit/dmf_map_fit.h"
 #include "thinslab/fit/dmf_model_ladder.h"
 #include "thinslab/fit/dmf_processing.h"
+#include "thinslab/pipeline/calibration_summary.h"
+#include "thinslab/pipeline/capture_reading.h"
+#include "thinslab/pipeline/folder_report.h"
 
 namespace thinslab {
 namespace {
@@ -44,7 +44,10 @@ nlohmann::json DotPredictionRegionsJson(const std::vector<DmfValidationError>& e
                        {"points", e.points},
                        {"pairs", e.pairs},
                        {"relative_rms", e.relative_rms},
-                       {"noise_relative_rms", e.noise_relative_rms}});
+                       {"noise_relative_rms", e.noise_relative_rms},
+                       {"median_point_relative_rms", e.median_point_relative_rms},
+                       {"unsampled_peak_points", e.unsampled_peak_points},
+                       {"unsampled_peak_error_share", e.unsampled_peak_error_share}});
   }
   return regions;
 }
@@ -53,10 +56,17 @@ std::string DotPredictionRegionsText(const std::vector<DmfValidationError>& erro
   std::string out;
   for (const DmfValidationError& e : errors) {
     if (e.pairs == 0) continue;
-    char line[200];
-    std::snprintf(line, sizeof(line), "  %s: %.3f (%.3f) over %d points, %d pairs\n", e.region.c_str(), e.relative_rms,
-                  e.noise_relative_rms, e.points, e.pairs);
+    char line[300];
+    std::snprintf(line, sizeof(line), "  %s: %.3f (%.3f) over %d points, %d pairs; median per point %.3f",
+                  e.region.c_str(), e.relative_rms, e.noise_relative_rms, e.points, e.pairs,
+                  e.median_point_relative_rms);
     out += line;
+    if (e.unsampled_peak_points > 0) {
+      std::snprintf(line, sizeof(line), "; %d points with a peak between their training dots hold %.0f %% of the error",
+                    e.unsampled_peak_points, 100 * e.unsampled_peak_error_share);
+      out += line;
+    }
+    out += "\n";
   }
   return out;
 }
@@ -437,12 +447,28 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   }
   // Issue #23 section 4: the capture's validation dots, predicted by the tabulated fit.
   constexpr double kValidationLobeFraction = 0.1;
-  const std::vector<DmfValidationError> validation =
-      EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction);
+  std::vector<DmfValidationError> validation;
+  THINSLAB_RETURN_IF_ERROR(EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction, &validation));
   // The held-out grid dots (--hold-out), reported with or without the ladder.
   std::vector<DmfValidationError> held_out;
   if (run.processing.hold_out) {
     THINSLAB_RETURN_IF_ERROR(EvaluateHeldOutDots(slices, maps, truth, kValidationLobeFraction, &held_out));
+  }
+  // A few points whose lobe peaks between their training dots can make the pooled figure.
+  for (const auto& [what, errors] :
+       {std::pair{"validation dots", &validation}, std::pair{"held-out dots", &held_out}}) {
+    if (errors->empty() || errors->front().unsampled_peak_error_share <= 0.5) continue;
+    const DmfValidationError& all = errors->front();
+    std::ostringstream msg;
+    msg.precision(3);
+    msg << what << ": " << all.unsampled_peak_points << " of " << all.points << " points have a dot more than "
+        << kUnsampledPeakFactor
+        << "x above every training dot (a lobe peak between the training dots: a specular component or a point "
+           "mixing a smooth and a rough region) and hold "
+        << std::lround(100 * all.unsampled_peak_error_share) << " % of the squared error of the pooled relative RMS "
+        << all.relative_rms << "; the median point's is " << all.median_point_relative_rms;
+    warnings.push_back(msg.str());
+    std::cerr << "warning: " << session_dir << ": " << msg.str() << "\n";
   }
   std::map<std::string, int> counts;
   for (const DmfPointFit& f : maps.fits) ++counts[DmfStatusName(f.status)];
