@@ -241,9 +241,10 @@ namespace {
 // EvaluateValidationDots describes; points visited band by band (ForEachPointBand) when
 // `banded`, else all at once.
 template <typename Values, typename Sigmas>
-Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
-                              double lobe_fraction, const std::vector<Eigen::Vector3d>& positions, const Values& values,
-                              const Sigmas& sigmas, const std::vector<uint8_t>& use, bool banded,
+Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
+                              const std::vector<DmfTruthRegion>& regions, double lobe_fraction,
+                              const std::vector<Eigen::Vector3d>& positions, const Values& values, const Sigmas& sigmas,
+                              const std::vector<uint8_t>& use, bool banded, int num_threads,
                               std::vector<DmfValidationError>* result) {
   const int nd = static_cast<int>(positions.size());
   std::vector<DmfValidationError>& out = *result;
@@ -254,54 +255,71 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps, co
   const DmfNdfGrid grid(maps.ndf_resolution);
   std::vector<double> num(out.size(), 0), den(out.size(), 0), noise(out.size(), 0), unsampled_num(out.size(), 0);
   std::vector<std::vector<double>> point_rms(out.size());
+  // One point's pairs (on the threads); the sums below in point order, whatever the threads.
+  struct PointScore {
+    bool scored = false, unsampled_peak = false;
+    int pairs = 0;
+    double num = 0, den = 0, noise = 0;
+  };
+  auto score_point = [&](int p) {
+    PointScore score;
+    const DmfPointFit& stored = maps.fits[p];
+    if ((stored.status != DmfStatus::kOk && stored.status != DmfStatus::kInterpolated) || !stored.HasNdf()) {
+      return score;
+    }
+    const Eigen::Vector3d x = slices.PointPosition(p);
+    const Eigen::Vector3d entry = slices.LightEntryPoint(p);
+    const Eigen::Vector3d o = SampleToOptical((slices.camera_centre - x).normalized());
+    const float* value = values(p);
+    const float* sigma = sigmas(p);
+    double peak = 0;
+    for (int v = 0; v < nd; ++v) {
+      if (use[v]) peak = std::max(peak, value[v] - stored.rho_d);
+    }
+    if (!(peak > 0)) return score;
+    // The lobe the fit saw: the point's highest training dot.
+    const float* grid_values = slices.PointValues(p);
+    double training_peak = 0;
+    for (size_t q = 0; q < slices.train.size(); ++q) {
+      if (slices.train[q] != 0) training_peak = std::max(training_peak, grid_values[q] - stored.rho_d);
+    }
+    score.scored = true;
+    score.unsampled_peak = peak > kUnsampledPeakFactor * training_peak;
+    DmfPointFit rebuilt;
+    const DmfPointFit& fit = stored.log_ndf.empty() ? (rebuilt = maps.FitWithNdf(p)) : stored;
+    for (int v = 0; v < nd; ++v) {
+      const double above = value[v] - fit.rho_d;
+      if (!use[v] || above < lobe_fraction * peak) continue;
+      const Eigen::Vector3d i = SampleToOptical((positions[v] - entry).normalized());
+      const double d = PredictDualMicrofacet(fit, grid, maps.eta, i, o) - value[v];
+      score.num += d * d;
+      score.den += above * above;
+      if (sigma != nullptr) score.noise += Sqr(static_cast<double>(sigma[v]));
+      ++score.pairs;
+    }
+    return score;
+  };
+  std::vector<PointScore> scores;
   auto points = [&](int first, int count) {
-    for (int p = first; p < first + count; ++p) {
-      const DmfPointFit& stored = maps.fits[p];
-      if ((stored.status != DmfStatus::kOk && stored.status != DmfStatus::kInterpolated) || !stored.HasNdf()) continue;
-      const Eigen::Vector3d x = slices.PointPosition(p);
-      const Eigen::Vector3d entry = slices.LightEntryPoint(p);
-      const Eigen::Vector3d o = SampleToOptical((slices.camera_centre - x).normalized());
-      const float* value = values(p);
-      const float* sigma = sigmas(p);
-      double peak = 0;
-      for (int v = 0; v < nd; ++v) {
-        if (use[v]) peak = std::max(peak, value[v] - stored.rho_d);
-      }
-      if (!(peak > 0)) continue;
-      // The lobe the fit saw: the point's highest training dot.
-      const float* grid_values = slices.PointValues(p);
-      double training_peak = 0;
-      for (size_t q = 0; q < slices.train.size(); ++q) {
-        if (slices.train[q] != 0) training_peak = std::max(training_peak, grid_values[q] - stored.rho_d);
-      }
-      const bool unsampled_peak = peak > kUnsampledPeakFactor * training_peak;
-      DmfPointFit rebuilt;
-      const DmfPointFit& fit = stored.log_ndf.empty() ? (rebuilt = maps.FitWithNdf(p)) : stored;
-      double point_num = 0, point_den = 0, point_noise = 0;
-      int point_pairs = 0;
-      for (int v = 0; v < nd; ++v) {
-        const double above = value[v] - fit.rho_d;
-        if (!use[v] || above < lobe_fraction * peak) continue;
-        const Eigen::Vector3d i = SampleToOptical((positions[v] - entry).normalized());
-        const double d = PredictDualMicrofacet(fit, grid, maps.eta, i, o) - value[v];
-        point_num += d * d;
-        point_den += above * above;
-        if (sigma != nullptr) point_noise += Sqr(static_cast<double>(sigma[v]));
-        ++point_pairs;
-      }
-      auto add = [&](size_t k) {
-        ++out[k].points;
-        out[k].pairs += point_pairs;
-        num[k] += point_num;
-        den[k] += point_den;
-        noise[k] += point_noise;
-        if (point_den > 0) point_rms[k].push_back(std::sqrt(point_num / point_den));
-        if (unsampled_peak) {
-          ++out[k].unsampled_peak_points;
-          unsampled_num[k] += point_num;
+    scores.assign(count, PointScore());
+    ParallelFor(count, num_threads, [&](int k) { scores[k] = score_point(first + k); });
+    for (int k = 0; k < count; ++k) {
+      const PointScore& s = scores[k];
+      if (!s.scored) continue;
+      auto add = [&](size_t r) {
+        ++out[r].points;
+        out[r].pairs += s.pairs;
+        num[r] += s.num;
+        den[r] += s.den;
+        noise[r] += s.noise;
+        if (s.den > 0) point_rms[r].push_back(std::sqrt(s.num / s.den));
+        if (s.unsampled_peak) {
+          ++out[r].unsampled_peak_points;
+          unsampled_num[r] += s.num;
         }
       };
       add(0);
+      const Eigen::Vector3d x = slices.PointPosition(first + k);
       for (size_t r = 0; r < regions.size(); ++r) {
         const DmfTruthRegion& region = regions[r];
         const double margin = slices.pitch_m;
@@ -330,7 +348,7 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps, co
 }  // namespace
 
 Status EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
-                              const std::vector<DmfTruthRegion>& regions, double lobe_fraction,
+                              const std::vector<DmfTruthRegion>& regions, double lobe_fraction, int num_threads,
                               std::vector<DmfValidationError>* out) {
   const DmfValidationDots& validation = slices.validation;
   const size_t nv = validation.positions.size();
@@ -339,31 +357,31 @@ Status EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
       slices, maps, regions, lobe_fraction, validation.positions,
       [&](int p) { return validation.value.data() + static_cast<size_t>(p) * nv; },
       [&](int p) { return validation.sigma.empty() ? nullptr : validation.sigma.data() + static_cast<size_t>(p) * nv; },
-      std::vector<uint8_t>(nv, 1), slices.spill != nullptr, out);
+      std::vector<uint8_t>(nv, 1), slices.spill != nullptr, num_threads, out);
 }
 
 std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
                                                        const std::vector<DmfTruthRegion>& regions,
                                                        double lobe_fraction) {
   std::vector<DmfValidationError> out;
-  const Status status = EvaluateValidationDots(slices, maps, regions, lobe_fraction, &out);
+  const Status status = EvaluateValidationDots(slices, maps, regions, lobe_fraction, DefaultThreadCount(), &out);
   CHECK(status.ok()) << status.message();  // In memory: nothing to read.
   return out;
 }
 
 Status EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
-                           double lobe_fraction, std::vector<DmfValidationError>* out) {
+                           double lobe_fraction, int num_threads, std::vector<DmfValidationError>* out) {
   std::vector<uint8_t> held_out(slices.train.size());
   for (size_t q = 0; q < held_out.size(); ++q) held_out[q] = slices.train[q] == 0;
   return EvaluateDotPredictions(
       slices, maps, regions, lobe_fraction, slices.dot_positions, [&](int p) { return slices.PointValues(p); },
-      [&](int p) { return slices.PointSigmas(p); }, held_out, true, out);
+      [&](int p) { return slices.PointSigmas(p); }, held_out, true, num_threads, out);
 }
 
 std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps,
                                                     const std::vector<DmfTruthRegion>& regions, double lobe_fraction) {
   std::vector<DmfValidationError> out;
-  const Status status = EvaluateHeldOutDots(slices, maps, regions, lobe_fraction, &out);
+  const Status status = EvaluateHeldOutDots(slices, maps, regions, lobe_fraction, DefaultThreadCount(), &out);
   CHECK(status.ok()) << status.message();  // Slices in memory: nothing to read.
   return out;
 }

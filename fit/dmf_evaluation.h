@@ -116,8 +116,9 @@ struct DmfValidationError {
 std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
                                                        const std::vector<DmfTruthRegion>& regions,
                                                        double lobe_fraction = 0.1);
+// The points are scored on `num_threads` threads; the sums are the same whatever their number.
 Status EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
-                              const std::vector<DmfTruthRegion>& regions, double lobe_fraction,
+                              const std::vector<DmfTruthRegion>& regions, double lobe_fraction, int num_threads,
                               std::vector<DmfValidationError>* out);
 
 // The same for the grid's held-out dots (DmfSliceSet::train 0; `fit dmf --hold-out`): reported
@@ -127,6 +128,6 @@ std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, c
                                                     const std::vector<DmfTruthRegion>& regions,
                                                     double lobe_fraction = 0.1);
 Status EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
-                           double lobe_fraction, std::vector<DmfValidationError>* out);
+                           double lobe_fraction, int num_threads, std::vector<DmfValidationError>* out);
 
 }  // namespace thinslab

@@ -448,11 +448,13 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   // Issue #23 section 4: the capture's validation dots, predicted by the tabulated fit.
   constexpr double kValidationLobeFraction = 0.1;
   std::vector<DmfValidationError> validation;
-  THINSLAB_RETURN_IF_ERROR(EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction, &validation));
+  THINSLAB_RETURN_IF_ERROR(
+      EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction, run.fit.num_threads, &validation));
   // The held-out grid dots (--hold-out), reported with or without the ladder.
   std::vector<DmfValidationError> held_out;
   if (run.processing.hold_out) {
-    THINSLAB_RETURN_IF_ERROR(EvaluateHeldOutDots(slices, maps, truth, kValidationLobeFraction, &held_out));
+    THINSLAB_RETURN_IF_ERROR(
+        EvaluateHeldOutDots(slices, maps, truth, kValidationLobeFraction, run.fit.num_threads, &held_out));
   }
   // A few points whose lobe peaks between their training dots can make the pooled figure.
   for (const auto& [what, errors] :
