@@ -33,8 +33,12 @@ def installed_paths(package):
 def main():
     packages, command = sys.argv[1].split(","), sys.argv[2:]
     if os.environ.get(INSIDE) != "1":
-        probe = subprocess.run(["unshare", "--mount", "--propagation", "private", "true"], capture_output=True)
-        if os.geteuid() != 0 or probe.returncode != 0:
+        try:
+            probe = subprocess.run(["unshare", "--mount", "--propagation", "private", "true"], capture_output=True)
+            possible = os.geteuid() == 0 and probe.returncode == 0
+        except OSError:  # No unshare(1).
+            possible = False
+        if not possible:
             run_as_is(command, "no private mount namespace here (root and unshare(2) needed)")
         os.execvpe("unshare", ["unshare", "--mount", "--propagation", "private", sys.executable,
                                os.path.abspath(__file__), *sys.argv[1:]], {**os.environ, INSIDE: "1"})
@@ -49,7 +53,9 @@ def main():
         if not any(folder == t or folder.startswith(t + "/") for t in tops):
             tops.append(folder)
     scratch = tempfile.mkdtemp(prefix="thinslab-hide-")
-    subprocess.run(["mount", "-t", "tmpfs", "thinslab-hide", scratch], check=True)
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "thinslab-hide", scratch], capture_output=True, text=True)
+    if mounted.returncode != 0:
+        run_as_is(command, f"cannot mount a tmpfs ({mounted.stderr.strip()})")
     for index, top in enumerate(tops):
         upper, work = os.path.join(scratch, str(index), "upper"), os.path.join(scratch, str(index), "work")
         os.makedirs(work)
