@@ -73,17 +73,6 @@ std::string StopReason() {
   return std::string("interrupted by ") + (s == SIGINT ? "SIGINT" : s == SIGTERM ? "SIGTERM" : "a signal");
 }
 
-// Returns the value of --<name> in argv ("--name v" or "--name=v"), or `fallback`.
-std::string PeekOption(int argc, char** argv, const std::string& name, const std::string& fallback) {
-  const std::string flag = "--" + name;
-  for (int i = 0; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == flag && i + 1 < argc) return argv[i + 1];
-    if (arg.rfind(flag + "=", 0) == 0) return arg.substr(flag.size() + 1);
-  }
-  return fallback;
-}
-
 // The plan: kind plus every option except the ones naming devices, the folder or run control.
 std::string PlanText(const std::string& kind, const std::string& ini) {
   static const char* kNotPlan[] = {"OUTPUT", "camera", "display", "laser", "resume", "quiet", "camera-timeout-s", "sim-realtime",
@@ -426,10 +415,7 @@ int Finish(const std::string& kind, const CommonOptions& common, const std::stri
   const Status status = RunAcquisition(run, header, common.sim_realtime ? &realtime : camera, script, &result);
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   if (result.already_complete) {
     std::cout << common.out << ": session is already complete; nothing to resume\n";
     return 0;
@@ -449,16 +435,6 @@ int Finish(const std::string& kind, const CommonOptions& common, const std::stri
     }
     std::cout << check.Describe();
   }
-  return 0;
-}
-
-int Fail(const Status& status) {
-  std::cerr << "error: " << status.message() << "\n";
-  return 1;
-}
-
-int Help(const OptionParser& parser) {
-  std::cout << parser.Usage();
   return 0;
 }
 
@@ -503,19 +479,19 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
   }
   parser.AddDouble("exposure-us", &session.exposure_time_us, "exposure [us]");
   AddSyncOptions(&parser, &session.sync);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) return Help(parser);
-  if (status.ok()) status = CheckSimExposureStep(simulated.rig.sensor);
-  if (!status.ok()) return Fail(status);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status = CheckSimExposureStep(simulated.rig.sensor);
+  if (!status.ok()) return CommandFailed(status);
   session.sync.max_retries = common.max_retries;
   std::string error;
-  if (!session.Check(&error)) return Fail(Status::Error(error));
+  if (!session.Check(&error)) return CommandFailed(Status::Error(error));
   const std::string plan = PlanText("shadow-maps", parser.ToIni());
   const int planned = static_cast<int>(PlanShadowMapSession(session).size());
 
   RealDevices devices;
   status = OpenRealDevices(common, &devices);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   DeviceFailureTracker tracker;
   if (sim) {
     simulated.rig.board_distance_m = board_distance_mm * 1e-3;
@@ -524,7 +500,7 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
     status = LoadOrGenerateTau(tau_path, simulated.rig.seed, &tau);
     std::unique_ptr<SimShadowMapRig> rig;
     if (status.ok()) status = SimShadowMapRig::Create(simulated.rig, tau, &rig);
-    if (!status.ok()) return Fail(status);
+    if (!status.ok()) return CommandFailed(status);
     session.sync = SyncForSensor(session.sync, simulated.rig.sensor);
     TeeProjector tee(rig->projector(), devices.window.get());
     TrackedProjector projector(devices.window ? static_cast<Projector*>(&tee) : rig->projector(),
@@ -537,10 +513,12 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
                   },
                   &tracker, dynamic_cast<SimBoardCamera*>(rig->camera()));
   }
-  if (!devices.window) return Fail(Status::Error("thinslab acquire shadow-maps: a real camera needs --display <n> (the projector)"));
+  if (!devices.window)
+    return CommandFailed(
+        Status::Error("thinslab acquire shadow-maps: a real camera needs --display <n> (the projector)"));
   RigInfo rig;
   status = RealRig(common, devices.camera->info(), &rig);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   rig.projector.present = true;
   TrackedProjector projector(devices.window.get(), devices.display_name, &tracker);
   const SampleChanger change = OperatorSampleChanger();
@@ -583,19 +561,20 @@ int AcquireLaser(int argc, char** argv, bool sim) {
   parser.AddBool("capture-validation", &session.capture_validation,
                  "also capture a second contaminated bracket marked validation (fit phase reports how well it predicts it)");
   AddSyncOptions(&parser, &session.sync);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) return Help(parser);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   if (status.ok() && !exposures.empty()) status = ParseExposureList(exposures, "exposures-us", &session.exposure_times_us);
   if (status.ok()) status = CheckSimExposureStep(simulated.sensor);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   session.sync.max_retries = common.max_retries;
   std::string error;
-  if (!session.Check(&error)) return Fail(Status::Error(error));
+  if (!session.Check(&error)) return CommandFailed(Status::Error(error));
   const std::string plan = PlanText("laser", parser.ToIni());
 
   RealDevices devices;
   status = OpenRealDevices(common, &devices);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   DeviceFailureTracker tracker;
   if (sim) {
     simulated.board_distance_m = distance_mm * 1e-3;
@@ -604,7 +583,7 @@ int AcquireLaser(int argc, char** argv, bool sim) {
         *std::min_element(session.exposure_times_us.begin(), session.exposure_times_us.end());
     std::unique_ptr<SimLaserLobeRig> rig;
     status = SimLaserLobeRig::Create(simulated, &rig);
-    if (!status.ok()) return Fail(status);
+    if (!status.ok()) return CommandFailed(status);
     session.sync = SyncForSensor(session.sync, simulated.sensor);
     TeeProjector tee_projector(rig->flat_source(), devices.window.get());
     TeeLaser tee_laser(rig->laser(), devices.laser.get());
@@ -621,14 +600,15 @@ int AcquireLaser(int argc, char** argv, bool sim) {
                   },
                   &tracker, dynamic_cast<SimBoardCamera*>(rig->camera()));
   }
-  if (!devices.laser) return Fail(Status::Error("thinslab acquire laser: a real camera needs --laser <spec>"));
+  if (!devices.laser) return CommandFailed(Status::Error("thinslab acquire laser: a real camera needs --laser <spec>"));
   if (session.capture_flat && !devices.window) {
-    return Fail(Status::Error("thinslab acquire laser: --capture-flat needs --display <n> (the flat-field source); "
-                              "or give --capture-flat false"));
+    return CommandFailed(
+        Status::Error("thinslab acquire laser: --capture-flat needs --display <n> (the flat-field source); "
+                      "or give --capture-flat false"));
   }
   RigInfo rig;
   status = RealRig(common, devices.camera->info(), &rig);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   rig.laser.present = true;
   rig.laser.beam_radius_m = common.beam_radius_mm * 1e-3;
   rig.laser.wavelength_m = common.wavelength_nm * 1e-9;
@@ -830,8 +810,9 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
     parser.AddBool("capture-dark", &bracket_session.capture_dark, "also capture a dark bracket");
     parser.AddInt("frames-per-exposure", &bracket_session.frames_per_exposure, "frames per exposure");
   }
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) return Help(parser);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   const bool plan_exposures = dot_scan && exposures == "auto";
   if (status.ok() && !exposures.empty() && !plan_exposures) {
     status = ParseExposureList(exposures, "exposures-us", &bracket.exposures_us);
@@ -841,13 +822,13 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
     status = Status::Error("thinslab acquire gamma: option --gamma-table: the gamma measurement drives the display "
                            "through the identity table; give the table to the other kinds");
   }
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   sync.max_retries = common.max_retries;
   std::string plan = PlanText(kind, parser.ToIni());
 
   RealDevices devices;
   status = OpenRealDevices(common, &devices);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   DeviceFailureTracker tracker;
   std::unique_ptr<SimDotMonitor> sim_monitor;
   Projector* display = nullptr;
@@ -856,13 +837,14 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   SampleChanger change;
   std::shared_ptr<const SlabSample> sample;
   if (sim && sim_sample) {
-    if (sim_photons_k < 1) return Fail(Status::Error("thinslab acquire: option --sim-photons-k: must be >= 1"));
+    if (sim_photons_k < 1)
+      return CommandFailed(Status::Error("thinslab acquire: option --sim-photons-k: must be >= 1"));
     monitor.gamma_table = devices.gamma_table;
     sample_sim.rig = monitor;
     sample_sim.sample.photons_per_region = static_cast<int64_t>(sim_photons_k) * 1000;
     sample_sim.name = name;
     status = BuildDotScanRig(sample_sim, &sim_monitor, &sample);
-    if (!status.ok()) return Fail(status);
+    if (!status.ok()) return CommandFailed(status);
     display = sim_monitor.get();
     camera = sim_monitor->camera();
     rig = sim_monitor->rig();
@@ -876,7 +858,7 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   } else if (sim) {
     monitor.gamma_table = devices.gamma_table;
     status = SimDotMonitor::Create(monitor, &sim_monitor);
-    if (!status.ok()) return Fail(status);
+    if (!status.ok()) return CommandFailed(status);
     display = sim_monitor.get();
     camera = sim_monitor->camera();
     rig = sim_monitor->rig();
@@ -892,11 +874,12 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
     change = AnySampleState();
     sync = SyncForSensor(sync, monitor.sensor);
   } else {
-    if (!devices.window) return Fail(Status::Error("thinslab acquire " + kind + ": a real camera needs --display <n>"));
+    if (!devices.window)
+      return CommandFailed(Status::Error("thinslab acquire " + kind + ": a real camera needs --display <n>"));
     display = devices.window.get();
     camera = devices.camera.get();
     status = RealRig(common, camera->info(), &rig);
-    if (!status.ok()) return Fail(status);
+    if (!status.ok()) return CommandFailed(status);
     change = OperatorSampleChanger();
     if (!common.name.empty()) name = common.name;
   }
@@ -908,55 +891,51 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
     dots.monitor_width_px = sim ? monitor.monitor_width_px : devices.window_width;
     dots.monitor_height_px = sim ? monitor.monitor_height_px : devices.window_height;
     if (validation_dots < 0 || validation_dots > 10000) {
-      return Fail(Status::Error("thinslab acquire dot-scan: --validation-dots must be in [0, 10000], got " +
-                                std::to_string(validation_dots)));
+      return CommandFailed(Status::Error("thinslab acquire dot-scan: --validation-dots must be in [0, 10000], got " +
+                                         std::to_string(validation_dots)));
     }
     dots.validation_dots_px = DotScanValidationDots(dots, validation_dots);
   }
   std::string error;
   const bool checked = dot_scan ? dots.Check(&error) : gamma ? gamma_session.Check(&error) : bracket_session.Check(&error);
-  if (!checked) return Fail(Status::Error(error));
+  if (!checked) return CommandFailed(Status::Error(error));
   // After the checks: the probe's dots come from the grid.
   if (plan_exposures) {
     status = PlanDotScanBracket(common, dots, camera, &projector, change, display->refresh_period_s(), &plan);
-    if (!status.ok()) return Fail(status);
+    if (!status.ok()) return CommandFailed(status);
   }
   const double period = display->refresh_period_s();
   const int planned = static_cast<int>(dot_scan ? PlanDotScan(dots, period).size()
                                        : gamma  ? PlanDisplayGammaSession(gamma_session, period).size()
                                                 : PlanBracketSession(bracket_session, period).size());
   const std::string session_kind = dot_scan ? "dot_scan" : gamma ? "display_gamma" : "exposure_bracket";
-  const int exit_code = Finish(kind, common, plan, planned, MakeHeader(name, session_kind, rig, sim), camera, sim ? "sim" : common.camera,
-                [&](Camera* cam, SessionWriter* writer) {
-                  return dot_scan ? RunDotScanSession(dots, cam, &projector, change, writer)
-                         : gamma  ? RunDisplayGammaSession(gamma_session, cam, &projector, change, writer)
-                                  : RunBracketSession(bracket_session, cam, &projector, change, writer);
-                },
-                &tracker);
+  const int session_exit_code = Finish(
+      kind, common, plan, planned, MakeHeader(name, session_kind, rig, sim), camera, sim ? "sim" : common.camera,
+      [&](Camera* cam, SessionWriter* writer) {
+        return dot_scan ? RunDotScanSession(dots, cam, &projector, change, writer)
+               : gamma  ? RunDisplayGammaSession(gamma_session, cam, &projector, change, writer)
+                        : RunBracketSession(bracket_session, cam, &projector, change, writer);
+      },
+      &tracker);
   // The truth of --sim-sample, once the capture is complete (not before: a new session's folder
   // must be empty when the acquisition starts).
-  if (exit_code == 0 && sample && !FileExists(JoinPath(common.out, "ground_truth/truth.json"))) {
+  if (session_exit_code == 0 && sample && !FileExists(JoinPath(common.out, "ground_truth/truth.json"))) {
     const Status truth = WriteDotScanTruth(sample_sim, *sample, *sim_monitor, 0, common.out);
-    if (!truth.ok()) return Fail(truth);
+    if (!truth.ok()) return CommandFailed(truth);
   }
-  return exit_code;
+  return session_exit_code;
 }
 
 int FoldJournal(int argc, char** argv) {
   std::string session_dir;
   OptionParser parser("acquire fold-journal");
   parser.AddPositional("OUTPUT", &session_dir, "session folder of a running-then-killed or ended `thinslab acquire`");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   JournalFoldResult fold;
   if (status.ok()) status = FoldJournalIntoManifest(session_dir, &fold);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   const std::string manifest = JoinPath(session_dir, kSessionManifestName);
   if (fold.folded_frames == 0) {
     std::cout << manifest << ": already holds every journaled frame (" << fold.frames << "); nothing written\n";
@@ -968,19 +947,27 @@ int FoldJournal(int argc, char** argv) {
 }
 
 // The camera option decides whether the simulated rig's options apply (their --help too).
-bool SimulatedCamera(int argc, char** argv) { return PeekOption(argc, argv, "camera", "sim") == "sim"; }
-int AcquireShadowMapsCommand(int argc, char** argv) {
-  return AcquireShadowMaps(argc, argv, SimulatedCamera(argc, argv));
+// The camera decides which options the command has (a simulated rig's or a real one's): its
+// --camera, from the command line or the --config file, is read first.
+bool SimulatedCamera(const std::string& command, int argc, char** argv) {
+  std::string camera = "sim";
+  OptionParser::PeekValue(command, argc, argv, "camera", &camera);
+  return camera == "sim";
 }
-int AcquireLaserCommand(int argc, char** argv) { return AcquireLaser(argc, argv, SimulatedCamera(argc, argv)); }
+int AcquireShadowMapsCommand(int argc, char** argv) {
+  return AcquireShadowMaps(argc, argv, SimulatedCamera("acquire shadow-maps", argc, argv));
+}
+int AcquireLaserCommand(int argc, char** argv) {
+  return AcquireLaser(argc, argv, SimulatedCamera("acquire laser", argc, argv));
+}
 int AcquireDotScanCommand(int argc, char** argv) {
-  return AcquireDisplaySession(argc, argv, SimulatedCamera(argc, argv), DisplayKind::kDotScan);
+  return AcquireDisplaySession(argc, argv, SimulatedCamera("acquire dot-scan", argc, argv), DisplayKind::kDotScan);
 }
 int AcquireBracketCommand(int argc, char** argv) {
-  return AcquireDisplaySession(argc, argv, SimulatedCamera(argc, argv), DisplayKind::kBracket);
+  return AcquireDisplaySession(argc, argv, SimulatedCamera("acquire bracket", argc, argv), DisplayKind::kBracket);
 }
 int AcquireGammaCommand(int argc, char** argv) {
-  return AcquireDisplaySession(argc, argv, SimulatedCamera(argc, argv), DisplayKind::kGamma);
+  return AcquireDisplaySession(argc, argv, SimulatedCamera("acquire gamma", argc, argv), DisplayKind::kGamma);
 }
 
 }  // namespace
@@ -1005,18 +992,19 @@ int AcquirePreview(int argc, char** argv) {
   parser.AddString("rig", &rig_capture, "outline the sample region of this capture's rig (its session.json)");
   parser.AddString("region-mm", &common.region_mm, "without --rig: sample region x0,y0,x1,y1 [mm] to outline");
   parser.AddDouble("board-distance-mm", &common.board_distance_mm, "without --rig: board distance [mm] (0: none)");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) return Help(parser);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   if (status.ok() && (!(exposure_us > 0) || !std::isfinite(exposure_us))) {
     status = Status::Error("thinslab acquire preview: option --exposure-us must be > 0");
   }
   if (status.ok() && frames < 0) status = Status::Error("thinslab acquire preview: option --frames must be >= 0");
   if (status.ok() && !snapshot.empty()) status = CheckOutputFile(snapshot, {});
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
 #if THINSLAB_WITH_SDL
   RealDevices devices;
   status = OpenRealCamera(common, &devices);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   std::unique_ptr<SimDotMonitor> sim_monitor;
   Camera* camera = devices.camera.get();
   RigInfo rig;
@@ -1030,7 +1018,7 @@ int AcquirePreview(int argc, char** argv) {
     dots.monitor_height_px = monitor.monitor_height_px;
     status = SimDotMonitor::Create(monitor, &sim_monitor);
     if (status.ok()) status = sim_monitor->ShowPattern(DotScanGridPattern(dots));
-    if (!status.ok()) return Fail(status);
+    if (!status.ok()) return CommandFailed(status);
     camera = sim_monitor->camera();
     rig = sim_monitor->rig();
     const double half_w = 0.5 * monitor.monitor_width_px * monitor.monitor_pixel_pitch_m;
@@ -1039,21 +1027,21 @@ int AcquirePreview(int argc, char** argv) {
     rig.sample.region_max_m = Eigen::Vector2d(half_w, half_h);
   } else {
     status = RealRig(common, camera->info(), &rig);
-    if (!status.ok()) return Fail(status);
+    if (!status.ok()) return CommandFailed(status);
   }
   CameraInfo geometry = camera->info();
   if (!rig_capture.empty()) {
     Session session;
     status = ReadSessionWithJournal(rig_capture, &session);
-    if (!status.ok()) return Fail(status.WithContext("option --rig"));
+    if (!status.ok()) return CommandFailed(status.WithContext("option --rig"));
     rig = session.rig;
-    if (rig.cameras.empty()) return Fail(Status::Error("option --rig: " + rig_capture + " has no camera"));
+    if (rig.cameras.empty()) return CommandFailed(Status::Error("option --rig: " + rig_capture + " has no camera"));
     const CameraInfo& c = rig.cameras.front();
     if (c.width_px != geometry.width_px || c.height_px != geometry.height_px) {
-      return Fail(Status::Error("option --rig: camera '" + c.id + "' of " + rig_capture + " is " +
-                                std::to_string(c.width_px) + " x " + std::to_string(c.height_px) + " px, camera " +
-                                common.camera + " delivers " + std::to_string(geometry.width_px) + " x " +
-                                std::to_string(geometry.height_px)));
+      return CommandFailed(
+          Status::Error("option --rig: camera '" + c.id + "' of " + rig_capture + " is " + std::to_string(c.width_px) +
+                        " x " + std::to_string(c.height_px) + " px, camera " + common.camera + " delivers " +
+                        std::to_string(geometry.width_px) + " x " + std::to_string(geometry.height_px)));
     }
     geometry.fx_px = c.fx_px, geometry.fy_px = c.fy_px, geometry.cx_px = c.cx_px, geometry.cy_px = c.cy_px;
     geometry.distortion = c.distortion;
@@ -1061,11 +1049,11 @@ int AcquirePreview(int argc, char** argv) {
   }
   double applied_us = 0;
   status = camera->SetExposure(exposure_us, &applied_us);
-  if (!status.ok()) return Fail(status.WithContext("camera " + common.camera));
+  if (!status.ok()) return CommandFailed(status.WithContext("camera " + common.camera));
   std::unique_ptr<PreviewWindow> window;
   status = OpenPreviewWindow(geometry.width_px, geometry.height_px + kPreviewHistogramHeight + kPreviewFocusBarHeight,
                              "thinslab preview: " + common.camera, &window);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   std::signal(SIGINT, OnStopSignal);
   std::signal(SIGTERM, OnStopSignal);
   double best_focus = 0;
@@ -1084,7 +1072,7 @@ int AcquirePreview(int argc, char** argv) {
   }
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
-  if (!status.ok()) return Fail(status.WithContext("camera " + common.camera));
+  if (!status.ok()) return CommandFailed(status.WithContext("camera " + common.camera));
   if (!snapshot.empty() && !picture.rgb.empty()) {
     std::vector<uint8_t> shown;
     status = window->ReadBack(&shown);
@@ -1094,12 +1082,12 @@ int AcquirePreview(int argc, char** argv) {
       cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
       status = WritePngAtomically(snapshot, bgr);
     }
-    if (!status.ok()) return Fail(status.WithContext("option --snapshot"));
+    if (!status.ok()) return CommandFailed(status.WithContext("option --snapshot"));
     std::cout << "wrote " << snapshot << " (the window as shown)\n";
   }
   return 0;
 #else
-  return Fail(NotBuilt("acquire preview", "THINSLAB_WITH_SDL"));
+  return CommandFailed(NotBuilt("acquire preview", "THINSLAB_WITH_SDL"));
 #endif
 }
 

@@ -25,19 +25,13 @@ int RunBatch(int argc, char** argv) {
   parser.AddString("state", &run.state_path,
                    "state file (default ROOT/thinslab_batch.json, ROOT/thinslab_batch_KofN.json for a shard)");
   parser.AddString("table", &run.table_path, "summary table, CSV (default: the state file's name with .csv)");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
-  if (status.ok()) status = ParseShard(shard, &run.shard_index, &run.shard_count);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status = ParseShard(shard, &run.shard_index, &run.shard_count);
   if (status.ok()) status = SelfExecutable(&run.executable);
   int failures = 0;
   if (status.ok()) status = RunBatchRefit(run, std::cout, &failures);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   if (failures > 0) {
     std::cerr << "error: " << failures << " capture" << (failures == 1 ? "" : "s") << " failed (see the table)\n";
     return 1;

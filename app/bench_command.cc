@@ -185,22 +185,15 @@ int RunBenchSweep(int argc, char** argv) {
   parser.AddInt("threads", &run.threads, "threads of the fits and the Monte Carlo");
   parser.AddBool("keep-captures", &run.keep_captures, "keep the simulated captures in OUTDIR/captures");
   // Quick defaults apply unless the option is given explicitly: parse twice.
-  Status status = parser.Parse(argc, argv);
-  if (status.ok() && run.quick) {
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  if (run.quick) {
     run.dots = 16;
     run.pitch_mm = 4;
     run.camera_width_px = 240;
     run.shadow_camera_width_px = 640;
     run.laser_camera_width_px = 640;
-    status = parser.Parse(argc, argv);
-  }
-  if (!status.ok()) {
-    std::cerr << "error: thinslab bench sweep: " << status.message() << "\n" << parser.Usage();
-    return 2;
-  }
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
+    if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   }
   const bool do_dmf = run.methods.find("dmf") != std::string::npos;
   const bool do_tau = run.methods.find("tau") != std::string::npos;
@@ -229,6 +222,7 @@ int RunBenchSweep(int argc, char** argv) {
     std::cerr << "error: thinslab bench sweep: " << captures << ": exists; remove it or choose another OUTDIR\n";
     return 1;
   }
+  Status status;
   std::vector<SweepPoint> dmf_points, tau_points, phase_points;
   std::string rig_text;
   if (do_dmf) status = SweepDmf(run, JoinPath(captures, "dot_scan"), out_dir, &dmf_points, &rig_text);

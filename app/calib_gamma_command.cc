@@ -16,21 +16,9 @@
 namespace thinslab {
 namespace {
 
-int Fail(const Status& status) {
-  std::cerr << "error: " << status.message() << "\n";
-  return 1;
-}
-
 }  // namespace
 
 int RunCalibGamma(int argc, char** argv) {
-  // "-o FILE" is accepted as "--out FILE".
-  std::vector<std::string> args(argv, argv + argc);
-  for (std::string& a : args) {
-    if (a == "-o") a = "--out";
-  }
-  std::vector<char*> arg_ptrs;
-  for (std::string& a : args) arg_ptrs.push_back(a.data());
   CalibGammaRun run;
   std::string &session_dir = run.session_dir, &response_path = run.response_path, &out = run.out;
   DisplayGammaFitOptions& options = run.options;
@@ -52,14 +40,12 @@ int RunCalibGamma(int argc, char** argv) {
   parser.AddDouble("outlier-mads", &options.outlier_mads, "pixels further than this many scaled MADs are left out");
   parser.AddDouble("read-noise-dn", &options.fallback_read_noise_dn, "read noise when the session has no dark frames [DN]");
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
-  Status status = parser.Parse(static_cast<int>(arg_ptrs.size()), arg_ptrs.data());
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  parser.SetShortName("out", 'o');
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   run.options_ini = parser.ToIni();
-  if (status.ok()) status = CalibrateDisplayGamma(run, std::cout);
-  return status.ok() ? 0 : Fail(status);
+  const Status status = CalibrateDisplayGamma(run, std::cout);
+  return status.ok() ? 0 : CommandFailed(status);
 }
 
 }  // namespace thinslab

@@ -32,32 +32,16 @@ Status ParseBoard(const std::string& text, double square_mm, ChessboardSpec* boa
   return board->Check().WithContext("--board/--square-mm");
 }
 
-// Splits argv into "--option [value]" pairs for the parser and bare arguments (image paths).
-// Every option of `calib camera` takes a value, so "--name value" pairs can be recognised.
-void SplitArgs(int argc, char** argv, std::vector<char*>* options, std::vector<std::string>* bare) {
-  for (int i = 0; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg.rfind("--", 0) == 0) {
-      options->push_back(argv[i]);
-      if (arg.find('=') == std::string::npos && arg != "--help" && i + 1 < argc) options->push_back(argv[++i]);
-    } else {
-      bare->push_back(arg);
-    }
-  }
-}
-
 }  // namespace
 
 int RunCalibCamera(int argc, char** argv) {
-  std::vector<char*> option_args;
-  std::vector<std::string> images;
-  SplitArgs(argc, argv, &option_args, &images);
   CalibCameraRun run;
   std::string board_text = "9x6";
   std::string &images_dir = run.images_dir, &out_dir = run.out_dir, &camera_id = run.camera_id;
   double square_mm = 25;
   CameraCalibrationOptions& options = run.options;
   OptionParser parser("calib camera");
+  parser.AddPositionalList("IMAGES", &run.images, "calibration photographs of the chessboard");
   parser.AddString("images", &images_dir, "folder of calibration photographs (instead of listing IMAGES...)");
   parser.AddString("board", &board_text, "inner corners <cols>x<rows> of the chessboard");
   parser.AddDouble("square-mm", &square_mm, "chessboard square size [mm]");
@@ -66,19 +50,13 @@ int RunCalibCamera(int argc, char** argv) {
   parser.AddInt("subpix-window-px", &options.subpix_half_window_px, "cornerSubPix half-window [px]; 0 = adaptive");
   parser.AddString("camera-id", &camera_id, "camera id written to rig.json");
   parser.AddString("out", &out_dir, "output folder for rig.json and the reports");
-  Status status = parser.Parse(static_cast<int>(option_args.size()), option_args.data());
-  if (parser.help_requested()) {
-    std::cout << "usage: thinslab calib camera IMAGES... | --images DIR [options]\n" << parser.Usage();
-    return 0;
-  }
-  if (status.ok()) status = ParseBoard(board_text, square_mm, &options.board);
-  run.images = images;
+  parser.SetUsageLine("usage: thinslab calib camera IMAGES... | --images DIR [options]");
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status = ParseBoard(board_text, square_mm, &options.board);
   CameraCalibrationResult result;
   if (status.ok()) status = CalibrateCamera(run, std::cout, &result);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   return 0;
 }
 
@@ -94,12 +72,9 @@ int RunCalibPose(int argc, char** argv) {
   parser.AddString("rig", &rig_path, "rig.json with the camera intrinsics (default SESSION/calib/rig.json)");
   CalibPoseRun run;
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
-  if (status.ok()) status = ParseBoard(board_text, square_mm, &run.board);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status = ParseBoard(board_text, square_mm, &run.board);
   double ox = 0, oy = 0, oz = 0;
   char extra = 0;
   if (status.ok() && std::sscanf(offset_text.c_str(), "%lf,%lf,%lf%c", &ox, &oy, &oz, &extra) != 3) {
@@ -110,10 +85,7 @@ int RunCalibPose(int argc, char** argv) {
   run.kind = kind;
   run.rig_path = rig_path;
   if (status.ok()) status = CalibratePose(run, std::cout);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   return 0;
 }
 
@@ -132,17 +104,11 @@ int RunCalibDots(int argc, char** argv) {
                    "response.json that linearises the frames, or 'linear' (default SESSION/calib/response.json if "
                    "present)");
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
-  if (status.ok()) status = CheckDotRadiusOption(parser, run.dot_radius_px);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status = CheckDotRadiusOption(parser, run.dot_radius_px);
   if (status.ok()) status = CalibrateDots(run, std::cout);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   return 0;
 }
 

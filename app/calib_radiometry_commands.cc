@@ -17,11 +17,6 @@
 namespace thinslab {
 namespace {
 
-int Fail(const Status& status) {
-  std::cerr << "error: " << status.message() << "\n";
-  return 1;
-}
-
 }  // namespace
 
 int RunCalibResponse(int argc, char** argv) {
@@ -45,14 +40,12 @@ int RunCalibResponse(int argc, char** argv) {
   parser.AddUint64("seed", &options.seed, "seed of the pixel sample");
   parser.AddString("out", &out, "output file (default SESSION/calib/response.json)");
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   run.options_ini = parser.ToIni();
   if (status.ok()) status = CalibrateResponse(run, std::cout);
-  return status.ok() ? 0 : Fail(status);
+  return status.ok() ? 0 : CommandFailed(status);
 }
 
 int RunCalibHdr(int argc, char** argv) {
@@ -74,15 +67,13 @@ int RunCalibHdr(int argc, char** argv) {
   parser.AddString("exposures", &run.exposures,
                    "reported (what the camera says it applied) or measured (reported x the factor the frames show)");
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   run.options_ini = parser.ToIni();
   run.progress = CommandProgress();
   if (status.ok()) status = CalibrateHdr(run, std::cout);
-  return status.ok() ? 0 : Fail(status);
+  return status.ok() ? 0 : CommandFailed(status);
 }
 
 int RunCalibFlat(int argc, char** argv) {
@@ -98,14 +89,12 @@ int RunCalibFlat(int argc, char** argv) {
   parser.AddDouble("min-relative", &options.min_relative, "pixels below this fraction of the median are invalid");
   parser.AddString("out", &out, "output file (default SESSION/calib/flat_field.exr)");
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   run.options_ini = parser.ToIni();
   if (status.ok()) status = CalibrateFlatField(run, std::cout);
-  return status.ok() ? 0 : Fail(status);
+  return status.ok() ? 0 : CommandFailed(status);
 }
 
 }  // namespace thinslab

@@ -177,19 +177,14 @@ int RunCharts(int argc, char** argv) {
   parser.AddPositional("OUTDIR", &out_dir, "folder for the PNG and CSV files (e.g. docs/models)");
   parser.AddInt("paths", &paths, "Monte Carlo paths per tau for the Frisvad chart");
   parser.AddInt("photons", &photons, "photons per case for the dual-microfacet chart");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   if (status.ok() && (paths < 1000 || photons < 1000)) status = Status::Error("thinslab charts: --paths/--photons >= 1000");
   if (status.ok()) status = CreateDirectories(out_dir);
   if (status.ok()) status = FrisvadChart(out_dir, paths);
   if (status.ok()) status = DualMicrofacetChart(out_dir, photons);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   std::cout << "wrote frisvad_vs_tau.png/.csv and dual_microfacet_lobes.png/.csv to " << out_dir << "\n";
   return 0;
 }

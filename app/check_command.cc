@@ -48,13 +48,11 @@ int RunCheck(int argc, char** argv) {
   parser.AddPositional("CAPTURE", &session_dir, "capture session folder (holding session.json)");
   parser.AddString("json", &json_path, "also write the check as JSON to this file (e.g. CAPTURE/calib/check.json)");
   AddCaptureCheckOptions(&parser, &options);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout
-        << parser.Usage()
-        << "\nExit status: 0 when the verdict is \"good\" or \"usable\", 3 when it is \"retake\", 1 on an error.\n";
-    return 0;
-  }
+  parser.SetHelpFooter(
+      "Exit status: 0 when the verdict is \"good\" or \"usable\", 3 when it is \"retake\", 1 on an error.");
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   if (status.ok() && !json_path.empty()) status = CheckOutputFile(json_path, {{session_dir, {"fit", "calib"}}});
   CaptureCheck check;
   if (status.ok()) status = CheckCapture(session_dir, options, &check);
@@ -62,10 +60,7 @@ int RunCheck(int argc, char** argv) {
   if (status.ok() && !json_path.empty()) {
     status = WriteFileAtomically(json_path, check.ToJson().dump(2) + "\n").WithContext("option --json");
   }
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   std::cout << check.Describe();
   return check.verdict() == "retake" ? kCheckRetakeExitCode : 0;
 }

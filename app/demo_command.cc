@@ -17,11 +17,9 @@ int RunDemo(int argc, char** argv) {
   OptionParser parser("demo");
   parser.AddString("out", &out_dir, "report folder (replaced if it exists)");
   AddSimShadowOptions(&parser, &sim, &board_distance_mm, &tau_path);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   sim.rig.board_distance_m = board_distance_mm * 1e-3;
   const std::string session_dir = JoinPath(out_dir, "session");
   Image tau;
@@ -53,10 +51,7 @@ int RunDemo(int argc, char** argv) {
     std::cout << "fitting tau (Eq. 7 and the scattering-aware refinement) ...\n";
     status = FitTauPipeline(session_dir, report_dir, run, &summary, &comparison, &has_truth);
   }
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   new_output.Keep();
   std::cout << summary.BriefReport() << "\n";
   std::printf("accuracy against ground truth (pixels with 0.05 <= tau_true <= 1.5, n = %lld):\n",

@@ -112,12 +112,9 @@ int RunFitDmf(int argc, char** argv) {
                 "stream the slices from disk whatever --max-memory, in bands of at most this many points (whole "
                 "grid rows); 0 = only over the budget");
   parser.MarkDiagnostic("stream-band-points");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
-  if (status.ok()) status = ParsePixelTrace(pixel, "--pixel", &run.fit.trace);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status = ParsePixelTrace(pixel, "--pixel", &run.fit.trace);
   run.fit.trace.out = &std::cout;
   if (status.ok()) status = CheckDotRadiusOption(parser, run.processing.dot_radius_px);
   if (status.ok() && !(max_memory_gib >= 0 && max_memory_gib <= 1 << 20)) {
@@ -137,10 +134,7 @@ int RunFitDmf(int argc, char** argv) {
   run.processing.progress = run.fit.progress;
   std::string brief;
   if (status.ok()) status = FitDmfPipeline(session_dir, out_dir, run, &brief);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   std::cout << brief << "wrote " << out_dir << "\n";
   return 0;
 }

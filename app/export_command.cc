@@ -33,17 +33,12 @@ int RunExportTo(const std::string& renderer, int argc, char** argv) {
                    "distance of the backlight plane below the sample [mm] (-1: the fit's monitor, else 20 mm)");
   parser.AddInt("image-width", &o.image_width, "rendered image width [px]");
   parser.AddInt("image-height", &o.image_height, "rendered image height [px]");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   run.options_ini = parser.ToIni();
   if (status.ok()) status = ExportFit(run, std::cout);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   return 0;
 }
 

@@ -64,13 +64,10 @@ int RunFitTau(int argc, char** argv) {
   std::string pixel;
   parser.AddString("pixel", &pixel, "X,Y: print this map pixel's data, iterations and result (as pbrt's --pixel)");
   parser.MarkDiagnostic("pixel");
-  Status status = parser.Parse(argc, argv);
-  if (status.ok()) status = ParsePixelTrace(pixel, "--pixel", &run.fit.trace);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status = ParsePixelTrace(pixel, "--pixel", &run.fit.trace);
   run.fit.trace.out = &std::cout;
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
   if (status.ok() && !run.phase_dir.empty() && (parser.IsSet("g") || parser.IsSet("refine"))) {
     status = Status::Error("thinslab fit tau: --phase sets the layer's g and --refine; give either --phase or --g/--refine");
   }
@@ -81,10 +78,7 @@ int RunFitTau(int argc, char** argv) {
   TauComparison comparison;
   bool has_truth = false;
   if (status.ok()) status = FitTauPipeline(session_dir, out_dir, run, &summary, &comparison, &has_truth);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   std::cout << summary.BriefReport() << "\nwrote " << out_dir << "\n";
   if (has_truth) std::cout << comparison.ToJson();
   return 0;

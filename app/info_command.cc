@@ -62,19 +62,14 @@ int RunInfo(int argc, char** argv) {
   std::string session_dir;
   OptionParser parser("info");
   parser.AddPositional("CAPTURE", &session_dir, "capture session folder (holding session.json)");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   // Through the journal: a running or killed capture shows every frame it recorded.
   Session session;
   int journaled = 0;
   if (status.ok()) status = ReadSessionWithJournal(session_dir, &session, &journaled);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   std::cout << SummarizeSession(session) << SummarizeCompleteness(AssessCapture(session, journaled));
   if (session.acquisition.present && session.acquisition.state == "running") {
     // "running" is either a capture in progress or one that was killed: the folder lock tells.

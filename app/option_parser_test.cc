@@ -167,5 +167,73 @@ TEST(OptionParser, ConfigErrorsNameTheFileLineAndOption) {
   EXPECT_NE(error("albedo = 0.2\n").find("missing argument CAPTURE"), std::string::npos);
 }
 
+// What CLI11 now parses: negative numbers as values, `-o` for `--out`, the bare arguments after
+// the positionals as a list (calib camera IMAGES...), an unknown option named before a missing
+// positional, and --help with the usage line, the footer and the common options.
+TEST(OptionParser, Cli11ParsesValuesListsShortNamesAndHelp) {
+  OptionParser parser("calib camera");
+  double g = 0;
+  std::string out;
+  std::vector<std::string> images;
+  parser.AddPositionalList("IMAGES", &images, "photographs");
+  parser.AddDouble("g", &g, "anisotropy");
+  parser.AddString("out", &out, "output folder");
+  parser.SetShortName("out", 'o');
+  parser.SetUsageLine("usage: thinslab calib camera IMAGES... | --images DIR [options]");
+  parser.SetHelpFooter("Exit status: 0.");
+  ASSERT_TRUE(ParseArgs(&parser, {"a.png", "--g", "-0.5", "b.png", "-o", "dir", "c.png"}).ok());
+  EXPECT_EQ(g, -0.5);
+  EXPECT_EQ(out, "dir");
+  EXPECT_EQ(images, (std::vector<std::string>{"a.png", "b.png", "c.png"}));
+  EXPECT_NE(parser.ToIni().find("IMAGES = a.png,b.png,c.png"), std::string::npos) << parser.ToIni();
+
+  ASSERT_TRUE(ParseArgs(&parser, {"--help"}).ok());
+  EXPECT_TRUE(parser.help_requested());
+  const std::string usage = parser.Usage();
+  for (const char* part : {"usage: thinslab calib camera IMAGES... | --images DIR [options]", "--g", "-o", "--out",
+                           "--config", "--quiet", "--verbose", "Exit status: 0."}) {
+    EXPECT_NE(usage.find(part), std::string::npos) << part << " not in\n" << usage;
+  }
+
+  OptionParser fit("fit tau");
+  std::string capture;
+  fit.AddPositional("CAPTURE", &capture, "");
+  fit.AddDouble("albedo", &g, "");
+  const Status unknown = ParseArgs(&fit, {"--albdo", "0.3"});
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.message().find("unknown option --albdo"), std::string::npos) << unknown.message();
+  const Status missing = ParseArgs(&fit, {"--albedo", "0.3"});
+  EXPECT_NE(missing.message().find("missing argument CAPTURE"), std::string::npos) << missing.message();
+  const Status extra = ParseArgs(&fit, {"cap", "other"});
+  EXPECT_NE(extra.message().find("unexpected argument 'other'"), std::string::npos) << extra.message();
+  const Status bad_flag = ParseArgs(&fit, {"cap", "--quiet=maybe"});
+  EXPECT_NE(bad_flag.message().find("--quiet = 'maybe' is not a valid true/false"), std::string::npos)
+      << bad_flag.message();
+}
+
+// PeekValue reads one option before the full parse (acquire's --camera), from the command line
+// or from the --config file, whatever else the arguments hold.
+TEST(OptionParser, PeekValueSeesTheCommandLineAndTheConfigFile) {
+  TempDir dir;
+  auto peek = [](std::vector<std::string> args) {
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    std::string camera = "sim";
+    EXPECT_TRUE(
+        OptionParser::PeekValue("acquire laser", static_cast<int>(argv.size()), argv.data(), "camera", &camera).ok());
+    return camera;
+  };
+  EXPECT_EQ(peek({"out", "--photons", "100", "--resume", "--verbose"}), "sim");
+  EXPECT_EQ(peek({"--camera=aravis:127.0.0.1", "out"}), "aravis:127.0.0.1");
+  EXPECT_EQ(peek({"--resume", "out", "--camera", "v4l2:/dev/video0", "--help"}), "v4l2:/dev/video0");
+  const std::string ini = dir / "options.ini";
+  ASSERT_TRUE(WriteFileAtomically(ini,
+                                  "# thinslab acquire laser: effective options\nOUTPUT = s\ncamera = aravis:10.0.0.2\n"
+                                  "gain-db = 3\n")
+                  .ok());
+  EXPECT_EQ(peek({"--config", ini}), "aravis:10.0.0.2");
+  EXPECT_EQ(peek({"--config", ini, "--camera", "sim"}), "sim");  // The command line overrides the file.
+}
+
 }  // namespace
 }  // namespace thinslab

@@ -57,11 +57,9 @@ int RunFitPhase(int argc, char** argv) {
   AddCalibrationOptions(&parser, &preparation.calibration);
   bool allow_incomplete = false;
   AddIncompleteCaptureOption(&parser, &allow_incomplete);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   if (status.ok() && max_theta != "auto") {
     char* end = nullptr;
     options.max_theta_deg = std::strtod(max_theta.c_str(), &end);
@@ -80,10 +78,7 @@ int RunFitPhase(int argc, char** argv) {
         FitPhasePipeline(session_dir, out_dir, options, preparation, allow_incomplete, parser.ToIni(), &summary, &rings,
                          &ladder);
   }
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   std::cout << summary.BriefReport() << "\n";
   if (!summary.IsUsable()) std::cout << summary.message << "\n";
   if (ladder.chosen_rung >= 0) {
@@ -128,8 +123,10 @@ int RunSimLaser(int argc, char** argv) {
   parser.AddDouble("spike-fill", &rig.spike_fill, "unscattered spike at the shortest exposure / full well");
   std::string exposures;
   parser.AddString("exposures-us", &exposures, "bracket exposures, comma-separated (default 20,200,...,2000000)");
-  Status status = parser.Parse(argc, argv);
-  if (status.ok() && !exposures.empty()) {
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
+  if (!exposures.empty()) {
     options.session.exposure_times_us.clear();
     std::stringstream list(exposures);
     std::string item;
@@ -142,20 +139,13 @@ int RunSimLaser(int argc, char** argv) {
       options.session.exposure_times_us.push_back(t);
     }
   }
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
   rig.board_distance_m = distance_mm * 1e-3;
   rig.beam_radius_m = beam_radius_mm * 1e-3;
   rig.beam_offset_m = Eigen::Vector2d(offset_x_mm, offset_y_mm) * 1e-3;
   NewFolderGuard new_output(out_dir);
   options.progress = CommandProgress();
   if (status.ok()) status = SynthesizeLaserLobeSession(options, out_dir);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   new_output.Keep();
   std::cout << "wrote laser-lobe session " << out_dir << "\n";
   return 0;

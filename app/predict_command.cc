@@ -30,17 +30,12 @@ int RunPredict(int argc, char** argv) {
   parser.AddString("out", &out_dir, "output folder (default CAPTURE/fit/predict)");
   AddCalibrationOptions(&parser, &run.calibration);
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   run.options_ini = parser.ToIni();
   if (status.ok()) status = PredictCapture(run, std::cout);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   return 0;
 }
 

@@ -28,19 +28,14 @@ int RunPreviewFit(int argc, char** argv) {
   parser.AddDouble("albedo", &run.layer.albedo, "layers: single-scattering albedo (-9: the fit's)");
   parser.AddDouble("n2", &run.layer_n2, "layers: refractive index of the contaminant");
   parser.AddDouble("glass-eta", &run.layer.glass_eta, "layers: refractive index of the pane");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   run.slab.checker_m = checker_mm * 1e-3;
   run.slab.backlight_distance_m = distance_mm * 1e-3;
   run.options_ini = parser.ToIni();
   if (status.ok()) status = PreviewFit(run, std::cout);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   return 0;
 }
 

@@ -23,17 +23,12 @@ int RunRoundTrip(int argc, char** argv) {
   parser.AddInt("downsample", &run.downsample, "camera pixels per rendered pixel along each axis");
   AddCalibrationOptions(&parser, &run.calibration);
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   run.options_ini = parser.ToIni();
   if (status.ok()) status = RenderRoundTrip(run, std::cout);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   return 0;
 }
 

@@ -78,21 +78,16 @@ int RunSimShadowMaps(int argc, char** argv) {
   OptionParser parser("sim shadow-maps");
   parser.AddPositional("OUT", &out_dir, "new session folder to write");
   AddSimShadowOptions(&parser, &options, &board_distance_mm, &tau_path);
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   options.rig.board_distance_m = board_distance_mm * 1e-3;
   Image tau;
   NewFolderGuard new_output(out_dir);
   if (status.ok()) status = LoadOrGenerateTau(tau_path, options.rig.seed, &tau);
   options.progress = CommandProgress();
   if (status.ok()) status = SynthesizeShadowMapSession(options, tau, out_dir);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   new_output.Keep();
   std::cout << "wrote shadow-map session " << out_dir << "\n";
   return 0;
@@ -108,11 +103,9 @@ int RunSimPattern(int argc, char** argv) {
   parser.AddDouble("max-tau", &options.max_tau, "densest dust speck");
   parser.AddInt("dust-specks", &options.num_dust_specks, "number of dust specks");
   parser.AddUint64("seed", &options.seed, "random seed");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   if (status.ok() && (options.width_px < 8 || options.height_px < 8 || options.width_px > 16384 ||
                       options.height_px > 16384)) {
     status = Status::Error("thinslab sim pattern: --width-px/--height-px must be in [8, 16384]");
@@ -130,10 +123,7 @@ int RunSimPattern(int argc, char** argv) {
     tau.attributes()["generator"] = "thinslab sim pattern, seed " + std::to_string(options.seed);
     status = WriteExr(out_path, tau, ExrPixelType::kHalf);
   }
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   std::cout << "wrote " << out_path << "\n";
   return 0;
 }
@@ -175,11 +165,9 @@ int RunSimDotScan(int argc, char** argv) {
   parser.AddUint64("seed", &options.rig.seed, "seed of the sensor noise");
   parser.AddUint64("sample-seed", &options.sample.seed, "seed of the Monte Carlo tables");
   parser.AddString("name", &options.name, "session name");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   if (status.ok() && !exposures.empty()) {
     status = ParseExposureList(exposures, "exposures-us", &options.session.bracket.exposures_us);
   }
@@ -190,10 +178,7 @@ int RunSimDotScan(int argc, char** argv) {
   NewFolderGuard new_output(out_dir);
   options.progress = CommandProgress();
   if (status.ok()) status = SynthesizeDotScanSession(options, out_dir, &result);
-  if (!status.ok()) {
-    std::cerr << "error: " << status.message() << "\n";
-    return 1;
-  }
+  if (!status.ok()) return CommandFailed(status);
   new_output.Keep();
   std::cout << "wrote dot-scan session " << out_dir << " (" << result.frames << " frames; tables " << result.tracing_s
             << " s, acquisition " << result.acquisition_s << " s)\n";

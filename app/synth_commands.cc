@@ -96,11 +96,6 @@ Status CheckSideOption(const std::string& option, int value_px) {
                        std::to_string(kMaxSynthesisSidePx) + "] px");
 }
 
-int Fail(const Status& status) {
-  std::cerr << "error: " << status.message() << "\n";
-  return 1;
-}
-
 int RunAddPrototype(int argc, char** argv) {
   PrototypeFromFitOptions o;
   std::string library, crop;
@@ -119,12 +114,9 @@ int RunAddPrototype(int argc, char** argv) {
   parser.AddDouble("tau-floor", &o.tau_floor, "fitted tau below this becomes 0 (noise floor)");
   parser.AddDouble("max-masked-fraction", &o.max_masked_fraction, "largest share of masked pixels in the crop");
   parser.AddBool("overwrite", &overwrite, "replace an existing prototype of that name");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
-  if (status.ok()) status = ParseCrop(crop, &o);
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status = ParseCrop(crop, &o);
   // The library (and the prototype folder in it) must stay out of the fits it is made from.
   if (status.ok() && !library.empty()) {
     status = CheckOutputOutsideInputs(library, {{o.fit_tau_dir, {}}, {o.fit_phase_dir, {}}});
@@ -132,7 +124,7 @@ int RunAddPrototype(int argc, char** argv) {
   Prototype p;
   if (status.ok()) status = PrototypeFromFit(o, &p);
   if (status.ok()) status = WritePrototype(library, p, overwrite);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   std::cout << "added prototype " << p.name << " (" << p.category << ", " << p.tau.width() << "x" << p.tau.height()
             << " px, g=" << p.g << " [" << p.g_source << "], albedo=" << p.albedo << " [" << p.albedo_source
             << "], n2=" << p.n2 << " [" << p.n2_source << "]) to " << library << "\n";
@@ -143,14 +135,12 @@ int RunList(int argc, char** argv) {
   std::string library;
   OptionParser parser("synth list");
   parser.AddPositional("LIBRARY", &library, "prototype library folder");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   std::vector<Prototype> prototypes;
   if (status.ok()) status = ReadPrototypeLibrary(library, &prototypes);
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   for (const auto& p : prototypes) {
     std::cout << p.name << "  " << p.category << "  " << p.tau.width() << "x" << p.tau.height() << " px @ "
               << p.pixel_pitch_m * 1e6 << " um  g=" << p.g << "  albedo=" << p.albedo << "  n2=" << p.n2 << "\n";
@@ -179,11 +169,9 @@ int RunLayer(int argc, char** argv) {
   parser.AddBool("preview", &preview, "also render pane_preview.png (Fig. 8 scenes)");
   parser.AddInt("preview-px", &preview_px, "largest side of each preview panel [px]");
   parser.AddString("background", &background_path, "background image for the pane preview (default: procedural)");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   if (library.empty()) library = DataDirectory() + "/prototypes";
   if (status.ok() && spec_path.empty() == prototypes.empty()) {
     status = Status::Error("synth layer: give exactly one of --spec FILE or --prototypes a,b,c");
@@ -265,7 +253,7 @@ int RunLayer(int argc, char** argv) {
     if (status.ok()) status = WriteFolderReport(out.path(), out_dir, "thinslab synth layer: " + layers_from);
     if (status.ok()) status = out.Commit();
   }
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   std::cout << "synthesized " << options.width_px << "x" << options.height_px << " layer from " << options.layers.size()
             << " prototype(s) in " << summary.total_s << " s (covered " << 100 * summary.covered_fraction
             << "%, mean tau " << summary.mean_tau << ")\nwrote " << out_dir << "\n";
@@ -282,11 +270,9 @@ int RunPreview(int argc, char** argv) {
   parser.AddString("background", &background_path, "background image (PNG/JPEG/EXR); default: procedural");
   parser.AddInt("max-size-px", &options.max_size_px, "largest side of each panel [px]");
   parser.AddDouble("glass-index", &options.glass_index, "refractive index of the pane");
-  Status status = parser.Parse(argc, argv);
-  if (parser.help_requested()) {
-    std::cout << parser.Usage();
-    return 0;
-  }
+  int exit_code = 0;
+  if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
+  Status status;
   if (out_path.empty()) out_path = layer_path + "_pane.png";
   const std::string json_path =
       out_path.size() > 4 ? out_path.substr(0, out_path.size() - 4) + ".json" : out_path + ".json";
@@ -300,7 +286,7 @@ int RunPreview(int argc, char** argv) {
   std::vector<PanePreviewPanel> panels;
   if (status.ok()) status = WritePanePreview(out_path, layer, background, options, &panels);
   if (status.ok()) status = WriteFileAtomically(json_path, PanelsJson(panels));
-  if (!status.ok()) return Fail(status);
+  if (!status.ok()) return CommandFailed(status);
   for (const auto& p : panels) {
     std::cout << p.scene << ": contaminated / clean = " << p.contrast_bright_background << " (bright background), "
               << p.contrast_dark_background << " (dark background)\n";

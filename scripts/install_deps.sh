@@ -28,6 +28,7 @@ packages=(
   libgmock-dev
   libbenchmark-dev
   nlohmann-json3-dev
+  libcli11-dev
   openexr
   gnuplot-nox
   pybind11-dev
