@@ -55,6 +55,7 @@ int RunCalibCamera(int argc, char** argv) {
   if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   Status status = ParseBoard(board_text, square_mm, &options.board);
   CameraCalibrationResult result;
+  run.options_ini = parser.ToIni();
   if (status.ok()) status = CalibrateCamera(run, std::cout, &result);
   if (!status.ok()) return CommandFailed(status);
   return 0;
@@ -84,6 +85,7 @@ int RunCalibPose(int argc, char** argv) {
   run.session_dir = session_dir;
   run.kind = kind;
   run.rig_path = rig_path;
+  run.options_ini = parser.ToIni();
   if (status.ok()) status = CalibratePose(run, std::cout);
   if (!status.ok()) return CommandFailed(status);
   return 0;
@@ -107,6 +109,7 @@ int RunCalibDots(int argc, char** argv) {
   int exit_code = 0;
   if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   Status status = CheckDotRadiusOption(parser, run.dot_radius_px);
+  run.options_ini = parser.ToIni();
   if (status.ok()) status = CalibrateDots(run, std::cout);
   if (!status.ok()) return CommandFailed(status);
   return 0;

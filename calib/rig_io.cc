@@ -118,6 +118,10 @@ Status ReadRigCalibration(const std::string& path, RigCalibration* rig) {
   if (root.contains("camera") && !root["camera"].is_null()) {
     const Json& j = root["camera"];
     const std::string p = "camera";
+    if (j.is_object() && j.contains("provenance")) {
+      if (!j["provenance"].is_object()) return r.Err(p + ".provenance", "expected an object");
+      out.camera.provenance_json = j["provenance"].dump();
+    }
     RigCameraCalibration& c = out.camera;
     c.present = true;
     if (j.contains("id") && j["id"].is_string()) c.camera_id = j["id"].get<std::string>();
@@ -148,6 +152,10 @@ Status ReadRigCalibration(const std::string& path, RigCalibration* rig) {
   if (root.contains("pose") && !root["pose"].is_null()) {
     const Json& j = root["pose"];
     const std::string p = "pose";
+    if (j.is_object() && j.contains("provenance")) {
+      if (!j["provenance"].is_object()) return r.Err(p + ".provenance", "expected an object");
+      out.pose.provenance_json = j["provenance"].dump();
+    }
     RigPoseCalibration& c = out.pose;
     c.present = true;
     THINSLAB_RETURN_IF_ERROR(r.Rigid(j, p, "cam_from_sample", &c.cam_from_sample));
@@ -160,6 +168,10 @@ Status ReadRigCalibration(const std::string& path, RigCalibration* rig) {
   if (root.contains("monitor") && !root["monitor"].is_null()) {
     const Json& j = root["monitor"];
     const std::string p = "monitor";
+    if (j.is_object() && j.contains("provenance")) {
+      if (!j["provenance"].is_object()) return r.Err(p + ".provenance", "expected an object");
+      out.monitor.provenance_json = j["provenance"].dump();
+    }
     RigMonitorCalibration& c = out.monitor;
     c.present = true;
     THINSLAB_RETURN_IF_ERROR(r.Rigid(j, p, "sample_from_monitor", &c.sample_from_monitor));
@@ -234,6 +246,7 @@ Status WriteRigCalibration(const std::string& path, const RigCalibration& rig) {
     j["num_views"] = c.num_views;
     j["board"] = OrderedJson{{"inner_cols", c.board_inner_cols}, {"inner_rows", c.board_inner_rows},
                              {"square_m", c.board_square_m}};
+    if (!c.provenance_json.empty()) j["provenance"] = OrderedJson::parse(c.provenance_json);
     root["camera"] = j;
   }
   if (rig.pose.present) {
@@ -245,6 +258,7 @@ Status WriteRigCalibration(const std::string& path, const RigCalibration& rig) {
     j["num_points"] = c.num_points;
     j["rotation_std_rad"] = {c.rotation_std_rad.x(), c.rotation_std_rad.y(), c.rotation_std_rad.z()};
     j["translation_std_m"] = {c.translation_std_m.x(), c.translation_std_m.y(), c.translation_std_m.z()};
+    if (!c.provenance_json.empty()) j["provenance"] = OrderedJson::parse(c.provenance_json);
     root["pose"] = j;
   }
   if (rig.monitor.present) {
@@ -281,6 +295,7 @@ Status WriteRigCalibration(const std::string& path, const RigCalibration& rig) {
       dots.push_back(e);
     }
     j["dots"] = dots;
+    if (!c.provenance_json.empty()) j["provenance"] = OrderedJson::parse(c.provenance_json);
     root["monitor"] = j;
   }
   // Full double precision so a read-back reproduces the values exactly.

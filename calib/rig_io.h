@@ -4,6 +4,8 @@
 // the others: "camera" (intrinsics, distortion, their standard deviations and RMS, from
 // `thinslab calib camera`), "pose" (cam_from_sample, from `thinslab calib pose`), "monitor"
 // (refined monitor pose and per-dot positions and radiances, from `thinslab calib dots`).
+// Each section carries the provenance of the command that wrote it (core/provenance.h's
+// object; absent in files written before 2026-12-06).
 #pragma once
 
 #include <Eigen/Core>
@@ -32,6 +34,7 @@ struct RigCameraCalibration {
   int num_views = 0;
   int board_inner_cols = 0, board_inner_rows = 0;
   double board_square_m = 0;
+  std::string provenance_json;  // Compact JSON object, "" if none.
 };
 
 struct RigPoseCalibration {
@@ -41,6 +44,7 @@ struct RigPoseCalibration {
   int num_points = 0;
   Eigen::Vector3d rotation_std_rad = Eigen::Vector3d::Zero();
   Eigen::Vector3d translation_std_m = Eigen::Vector3d::Zero();
+  std::string provenance_json;
 };
 
 struct RigMonitorCalibration {
@@ -55,6 +59,7 @@ struct RigMonitorCalibration {
   // `calib dots --refine-distance` moved the plane towards the camera (0: not refined).
   double grid_scale = 1, distance_error_m = 0, distance_error_sigma_m = 0, distance_correction_m = 0;
   std::vector<DotRecord> dots;
+  std::string provenance_json;
 };
 
 struct RigCalibration {

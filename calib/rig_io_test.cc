@@ -83,6 +83,29 @@ TEST(RigIoTest, RoundTripsEveryField) {
   EXPECT_FALSE(ApplyRigCalibration(back, &camera).ok());
 }
 
+// Each section keeps the provenance of the command that wrote it through a read and a write
+// (another command rewriting the file keeps the sections it does not own, provenance included).
+TEST(RigIoTest, EachSectionKeepsItsProvenance) {
+  TempDir dir;
+  RigCalibration rig;
+  rig.pose.present = true;
+  rig.pose.provenance_json = R"({"command":"calib pose","options_digest":"fnv1a64:0123456789abcdef"})";
+  ASSERT_TRUE(WriteRigCalibration(dir / "rig.json", rig).ok());
+  RigCalibration back;
+  ASSERT_TRUE(ReadRigCalibration(dir / "rig.json", &back).ok());
+  EXPECT_EQ(back.pose.provenance_json, rig.pose.provenance_json);
+  back.pose.provenance_json = "";  // As written before provenance: none.
+  ASSERT_TRUE(WriteRigCalibration(dir / "old.json", back).ok());
+  ASSERT_TRUE(ReadRigCalibration(dir / "old.json", &back).ok());
+  EXPECT_EQ(back.pose.provenance_json, "");
+  ASSERT_TRUE(WriteFileAtomically(dir / "bad.json", R"({"format": "thinslab-rig-calibration", "format_version": "1.0",
+      "pose": {"provenance": "calib pose"}})")
+                  .ok());
+  const Status bad = ReadRigCalibration(dir / "bad.json", &back);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.message().find("pose.provenance"), std::string::npos) << bad.message();
+}
+
 TEST(RigIoTest, SectionsAreOptionalAndErrorsNameTheField) {
   TempDir dir;
   RigCalibration only_pose;

@@ -6,14 +6,15 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <sstream>
 #include <iostream>
+#include <sstream>
 
 #include "thinslab/calib/rig_io.h"
 #include "thinslab/calib/session_calibration.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/math.h"
 #include "thinslab/core/output_guard.h"
+#include "thinslab/core/provenance.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/drivers/pattern_id.h"
 #include "thinslab/pipeline/calibration_summary.h"
@@ -80,6 +81,10 @@ Status CalibrateCamera(const CalibCameraRun& run, std::ostream& log, CameraCalib
   RigCalibration rig;
   THINSLAB_RETURN_IF_ERROR(ReadRigCalibrationIfExists(rig_path, &rig));
   RigCameraCalibration& c = rig.camera;
+  c.provenance_json =
+      ProvenanceJson({"calib camera", run.images_dir.empty() && !paths.empty() ? paths.front() : run.images_dir, "",
+                      run.options_ini})
+          .dump();
   c.present = true;
   c.camera_id = camera_id;
   c.width_px = result->camera.width_px;
@@ -177,6 +182,7 @@ Status CalibratePose(const CalibPoseRun& run, std::ostream& log) {
   THINSLAB_RETURN_IF_ERROR(ReadRigCalibrationIfExists(out_rig, &out));
   if (rig.camera.present) out.camera = rig.camera;  // Intrinsics the pose was computed with.
   out.pose.present = true;
+  out.pose.provenance_json = ProvenanceJson({"calib pose", session_dir, "", run.options_ini}).dump();
   out.pose.cam_from_sample = first.cam_from_plane;
   out.pose.rms_reprojection_px = first.rms_px;
   out.pose.max_reprojection_px = first.max_px;
@@ -259,6 +265,7 @@ Status CalibrateDots(const CalibDotsRun& run, std::ostream& log) {
   if (rig.pose.present) out.pose = rig.pose;
   RigMonitorCalibration& m = out.monitor;
   m.present = true;
+  m.provenance_json = ProvenanceJson({"calib dots", session_dir, "", run.options_ini}).dump();
   m.sample_from_monitor = result.sample_from_monitor;
   m.pixel_pitch_m = session.rig.monitor.pixel_pitch_m;
   m.width_px = session.rig.monitor.width_px;

@@ -24,6 +24,7 @@ struct CalibCameraRun {
   CameraCalibrationOptions options;  // options.board: the chessboard.
   std::string out_dir = ".";
   std::string camera_id = "cam0";   // Written to rig.json.
+  std::string options_ini;          // The effective options, for rig.json's provenance.
 };
 Status CalibrateCamera(const CalibCameraRun& run, std::ostream& log, CameraCalibrationResult* result);
 
@@ -36,6 +37,7 @@ struct CalibPoseRun {
   std::string kind = "target";   // Frame kind holding the chessboard.
   std::string rig_path;          // Intrinsics; "" = SESSION/calib/rig.json.
   bool allow_incomplete_capture = false;
+  std::string options_ini;  // The effective options, for rig.json's provenance.
 };
 Status CalibratePose(const CalibPoseRun& run, std::ostream& log);
 
@@ -49,6 +51,7 @@ struct CalibDotsRun {
   std::string rig_path;          // Intrinsics and pose; "" = SESSION/calib/rig.json.
   std::string response_path;     // "" = SESSION/calib/response.json if present; "linear".
   bool allow_incomplete_capture = false;
+  std::string options_ini;  // The effective options, for rig.json's provenance.
 };
 Status CalibrateDots(const CalibDotsRun& run, std::ostream& log);
 

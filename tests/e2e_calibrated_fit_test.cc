@@ -105,6 +105,10 @@ TEST(CalibratedFit, PoseFromTargetFrameReplacesWrongManifestPose) {
                                      std::to_string(-4 * 0.35) + "," + std::to_string(-2.5 * 0.35) + ",0");
   ASSERT_EQ(pose.exit_code, 0) << pose.output;
   ASSERT_TRUE(FileExists(session + "/calib/rig.json"));
+  // The pose section says which command, build and options made it (issue #26 item 1).
+  const nlohmann::json written = ReadJson(session + "/calib/rig.json")["pose"]["provenance"];
+  EXPECT_EQ(written.value("command", ""), "calib pose") << written;
+  EXPECT_EQ(written.value("options_digest", "").rfind("fnv1a64:", 0), 0u) << written;
   FitTau(session, dir / "calibrated", "");
   FitTau(session, dir / "ignored", "--calibration none");
 
@@ -261,6 +265,7 @@ TEST(CalibratedFit, DotScanTakesDotGeometryFromRigJson) {
   RigCalibration rig;
   ASSERT_TRUE(ReadRigCalibration(rig_path, &rig).ok());
   ASSERT_EQ(rig.monitor.dots.size(), 36u);
+  EXPECT_EQ(nlohmann::json::parse(rig.monitor.provenance_json).value("command", ""), "calib dots");
   const Eigen::Vector3d shift(0.005, 0, 0);
   for (DotRecord& d : rig.monitor.dots) d.position_in_sample_m += shift;
   ASSERT_TRUE(WriteRigCalibration(rig_path, rig).ok());
@@ -546,6 +551,22 @@ TEST(CalibrationCommands, CalibCameraFromImageFolder) {
   EXPECT_EQ(few.exit_code, 1);
   EXPECT_NE(few.output.find("2 "), std::string::npos) << few.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "out2/rig.json"));
+
+  // The photographs listed on the command line, options between them, give the same camera;
+  // rig.json's camera section names the command and its options' digest.
+  std::string listed = "calib camera --out " + (dir / "out3");
+  for (size_t v = 0; v < poses.size(); ++v) {
+    listed += " " + (dir / ("views/view" + std::to_string(v) + ".png")) + (v == 4 ? " --board 9x6" : "");
+  }
+  const RunResult by_list = RunThinslab(listed);
+  ASSERT_EQ(by_list.exit_code, 0) << by_list.output;
+  RigCalibration again;
+  ASSERT_TRUE(ReadRigCalibration(dir / "out3/rig.json", &again).ok());
+  EXPECT_EQ(again.camera.fx_px, rig.camera.fx_px);
+  EXPECT_EQ(again.camera.num_views, 10);
+  const nlohmann::json provenance = nlohmann::json::parse(again.camera.provenance_json);
+  EXPECT_EQ(provenance.value("command", ""), "calib camera");
+  EXPECT_EQ(provenance.value("options_digest", "").rfind("fnv1a64:", 0), 0u) << provenance;
 }
 
 }  // namespace
