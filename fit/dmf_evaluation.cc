@@ -2,10 +2,11 @@
 #include "thinslab/fit/dmf_evaluation.h"
 
 #include <glog/logging.h>
-#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <nlohmann/json.hpp>
 
 #include "thinslab/core/file.h"
 #include "thinslab/core/math.h"
@@ -14,6 +15,23 @@
 
 namespace thinslab {
 namespace {
+
+// Points scored between two progress reports (and between cancellation checks).
+constexpr int kPointsPerReport = 4096;
+
+// body(first, count) over [first, first + count) in chunks of kPointsPerReport points, each
+// chunk reported to `progress` as `done_before` + the points done so far.
+Status ForEachReportedChunk(int first, int count, ProgressTracker* progress, int64_t done_before, const char* what,
+                            const std::function<void(int first, int count)>& body) {
+  for (int start = first; start < first + count; start += kPointsPerReport) {
+    const int n = std::min(kPointsPerReport, first + count - start);
+    body(start, n);
+    if (progress != nullptr && !progress->Report(done_before + start - first + n)) {
+      return Status::Error(std::string(what) + ": cancelled");
+    }
+  }
+  return Status::Ok();
+}
 
 double Median(std::vector<double> v) {
   if (v.empty()) return -1;
@@ -97,18 +115,25 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
 }
 
 Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
-                           double held_out_tolerance, std::vector<DmfRegionAccuracy>* accuracy) {
+                           double held_out_tolerance, std::vector<DmfRegionAccuracy>* accuracy,
+                           const ProgressCallback& progress) {
   const DmfNdfGrid grid(maps.ndf_resolution);
   const bool held_out = std::any_of(slices.train.begin(), slices.train.end(), [](uint8_t t) { return t == 0; });
+  const int64_t n = slices.num_points();
+  ProgressTracker tracker(progress, "fit dmf: comparison with the ground truth",
+                          (held_out ? n : 0) + static_cast<int64_t>(regions.size()) * n);
+  constexpr char kWhat[] = "CompareDmfWithTruth";
   // Held-out errors first, one band of points at a time (streamed slices).
   std::vector<double> held_out_error(slices.num_points(), -1);
   if (held_out) {
     THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
-      ParallelFor(count, DefaultThreadCount(),
-                  [&](int k) { held_out_error[first + k] = DmfHeldOutError(slices, maps, first + k); });
-      return Status::Ok();
+      return ForEachReportedChunk(first, count, &tracker, 0, kWhat, [&](int start, int chunk) {
+        ParallelFor(chunk, DefaultThreadCount(),
+                    [&](int k) { held_out_error[start + k] = DmfHeldOutError(slices, maps, start + k); });
+      });
     }));
   }
+  int64_t done = held_out ? n : 0;
   std::vector<DmfRegionAccuracy>& out = *accuracy;
   out.clear();
   for (const DmfTruthRegion& r : regions) {
@@ -126,6 +151,8 @@ Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const
     int covered = 0, rough_1 = 0, rough_2 = 0, alpha_1 = 0, alpha_2 = 0;
     const double margin = slices.pitch_m;
     for (int p = 0; p < slices.num_points(); ++p) {
+      if ((p + 1) % kPointsPerReport == 0 && !tracker.Report(done + p + 1))
+        return Status::Error(std::string(kWhat) + ": cancelled");
       const Eigen::Vector3d x = slices.PointPosition(p);
       if (x.x() < r.min_m.x() + margin || x.x() > r.max_m.x() - margin || x.y() < r.min_m.y() + margin ||
           x.y() > r.max_m.y() - margin) {
@@ -193,6 +220,8 @@ Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const
       a.face_right = static_cast<double>(face_right) / a.fitted;
     }
     out.push_back(a);
+    done += n;
+    if (!tracker.Report(done)) return Status::Error(std::string(kWhat) + ": cancelled");
   }
   return Status::Ok();
 }
@@ -245,7 +274,7 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
                               const std::vector<DmfTruthRegion>& regions, double lobe_fraction,
                               const std::vector<Eigen::Vector3d>& positions, const Values& values, const Sigmas& sigmas,
                               const std::vector<uint8_t>& use, bool banded, int num_threads,
-                              std::vector<DmfValidationError>* result) {
+                              std::vector<DmfValidationError>* result, ProgressTracker* progress, const char* what) {
   const int nd = static_cast<int>(positions.size());
   std::vector<DmfValidationError>& out = *result;
   out.assign(1 + regions.size(), DmfValidationError());
@@ -300,7 +329,7 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
     return score;
   };
   std::vector<PointScore> scores;
-  auto points = [&](int first, int count) {
+  auto score_chunk = [&](int first, int count) {
     scores.assign(count, PointScore());
     ParallelFor(count, num_threads, [&](int k) { scores[k] = score_point(first + k); });
     for (int k = 0; k < count; ++k) {
@@ -329,7 +358,9 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
         }
       }
     }
-    return Status::Ok();
+  };
+  auto points = [&](int first, int count) {
+    return ForEachReportedChunk(first, count, progress, first, what, score_chunk);
   };
   THINSLAB_RETURN_IF_ERROR(banded ? ForEachPointBand(slices, points) : points(0, slices.num_points()));
   for (size_t k = 0; k < out.size(); ++k) {
@@ -349,15 +380,16 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
 
 Status EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
                               const std::vector<DmfTruthRegion>& regions, double lobe_fraction, int num_threads,
-                              std::vector<DmfValidationError>* out) {
+                              std::vector<DmfValidationError>* out, const ProgressCallback& progress) {
   const DmfValidationDots& validation = slices.validation;
   const size_t nv = validation.positions.size();
+  ProgressTracker tracker(progress, "fit dmf: validation dots", nv > 0 ? slices.num_points() : 0);
   // Streamed: the training dots' values (each point's training peak) are read band by band.
   return EvaluateDotPredictions(
       slices, maps, regions, lobe_fraction, validation.positions,
       [&](int p) { return validation.value.data() + static_cast<size_t>(p) * nv; },
       [&](int p) { return validation.sigma.empty() ? nullptr : validation.sigma.data() + static_cast<size_t>(p) * nv; },
-      std::vector<uint8_t>(nv, 1), slices.spill != nullptr, num_threads, out);
+      std::vector<uint8_t>(nv, 1), slices.spill != nullptr, num_threads, out, &tracker, "EvaluateValidationDots");
 }
 
 std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
@@ -370,12 +402,14 @@ std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices
 }
 
 Status EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
-                           double lobe_fraction, int num_threads, std::vector<DmfValidationError>* out) {
+                           double lobe_fraction, int num_threads, std::vector<DmfValidationError>* out,
+                           const ProgressCallback& progress) {
+  ProgressTracker tracker(progress, "fit dmf: held-out dots", slices.num_points());
   std::vector<uint8_t> held_out(slices.train.size());
   for (size_t q = 0; q < held_out.size(); ++q) held_out[q] = slices.train[q] == 0;
   return EvaluateDotPredictions(
       slices, maps, regions, lobe_fraction, slices.dot_positions, [&](int p) { return slices.PointValues(p); },
-      [&](int p) { return slices.PointSigmas(p); }, held_out, true, num_threads, out);
+      [&](int p) { return slices.PointSigmas(p); }, held_out, true, num_threads, out, &tracker, "EvaluateHeldOutDots");
 }
 
 std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps,

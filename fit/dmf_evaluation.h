@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "thinslab/core/progress.h"
 #include "thinslab/core/status.h"
 #include "thinslab/fit/dmf_map_fit.h"
 
@@ -84,8 +85,10 @@ constexpr double kDmfCorrectKsRatio = 1.5;
 std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps,
                                                    const std::vector<DmfTruthRegion>& regions,
                                                    double held_out_tolerance = 0.5);
+// `progress` (core/progress.h) hears of the points done, in every Status form below.
 Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
-                           double held_out_tolerance, std::vector<DmfRegionAccuracy>* accuracy);
+                           double held_out_tolerance, std::vector<DmfRegionAccuracy>* accuracy,
+                           const ProgressCallback& progress = ProgressCallback());
 std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy);
 
 // How well the fitted maps predict the capture's validation dots (DmfValidationDots; issue #23
@@ -119,7 +122,8 @@ std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices
 // The points are scored on `num_threads` threads; the sums are the same whatever their number.
 Status EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
                               const std::vector<DmfTruthRegion>& regions, double lobe_fraction, int num_threads,
-                              std::vector<DmfValidationError>* out);
+                              std::vector<DmfValidationError>* out,
+                              const ProgressCallback& progress = ProgressCallback());
 
 // The same for the grid's held-out dots (DmfSliceSet::train 0; `fit dmf --hold-out`): reported
 // whenever dots are held out, with or without the model ladder.
@@ -128,6 +132,7 @@ std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, c
                                                     const std::vector<DmfTruthRegion>& regions,
                                                     double lobe_fraction = 0.1);
 Status EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
-                           double lobe_fraction, int num_threads, std::vector<DmfValidationError>* out);
+                           double lobe_fraction, int num_threads, std::vector<DmfValidationError>* out,
+                           const ProgressCallback& progress = ProgressCallback());
 
 }  // namespace thinslab

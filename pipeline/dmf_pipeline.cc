@@ -442,19 +442,19 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
 
   std::vector<DmfRegionAccuracy> accuracy;
   if (has_truth) {
-    THINSLAB_RETURN_IF_ERROR(CompareDmfWithTruth(slices, maps, truth, 0.5, &accuracy));
+    THINSLAB_RETURN_IF_ERROR(CompareDmfWithTruth(slices, maps, truth, 0.5, &accuracy, run.fit.progress));
     THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "comparison.json"), DmfComparisonJson(accuracy)));
   }
   // Issue #23 section 4: the capture's validation dots, predicted by the tabulated fit.
   constexpr double kValidationLobeFraction = 0.1;
   std::vector<DmfValidationError> validation;
-  THINSLAB_RETURN_IF_ERROR(
-      EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction, run.fit.num_threads, &validation));
+  THINSLAB_RETURN_IF_ERROR(EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction, run.fit.num_threads,
+                                                  &validation, run.fit.progress));
   // The held-out grid dots (--hold-out), reported with or without the ladder.
   std::vector<DmfValidationError> held_out;
   if (run.processing.hold_out) {
-    THINSLAB_RETURN_IF_ERROR(
-        EvaluateHeldOutDots(slices, maps, truth, kValidationLobeFraction, run.fit.num_threads, &held_out));
+    THINSLAB_RETURN_IF_ERROR(EvaluateHeldOutDots(slices, maps, truth, kValidationLobeFraction, run.fit.num_threads,
+                                                 &held_out, run.fit.progress));
   }
   // A few points whose lobe peaks between their training dots can make the pooled figure.
   for (const auto& [what, errors] :

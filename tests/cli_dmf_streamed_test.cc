@@ -33,13 +33,19 @@ TEST(CliDmfStreamed, SameMapsAsInMemoryBudgetHeldNothingLeftBehind) {
   EXPECT_NE(streamed.output.find("streamed in bands of 128 points"), std::string::npos) << streamed.output;
   // Every stage of the fit reports its progress, over all bands (issue #26 item 4): the last
   // line of each counts the whole grid (32 x 32 points) or all its steps.
-  for (const char* done : {"fit dmf: dot frames (HDR merge, Eq. 12): 100/100",
-                           "fit dmf: diffuse separation (Dai Eq. 14): 1024/1024",
-                           "fit dmf: clustering (PCA, k-means, Dai Eq. 20): 20/20",
-                           "fit dmf: interpolation (Dai Eqs. 20-22): 1024/1024"}) {
+  for (const char* done :
+       {"fit dmf: dot frames (HDR merge, Eq. 12): 100/100", "fit dmf: diffuse separation (Dai Eq. 14): 1024/1024",
+        "fit dmf: clustering (PCA, k-means, Dai Eq. 20): 20/20", "fit dmf: interpolation (Dai Eqs. 20-22): 1024/1024",
+        "fit dmf: held-out dots: 1024/1024"}) {
     EXPECT_NE(streamed.output.find(done), std::string::npos) << done << "\n" << streamed.output;
   }
   EXPECT_NE(streamed.output.find("fit dmf: point fits (Dai Eqs. 14-19): "), std::string::npos) << streamed.output;
+  // The ground-truth comparison: the held-out errors, then every region's pass over the points.
+  const size_t compared = streamed.output.rfind("fit dmf: comparison with the ground truth: ");
+  ASSERT_NE(compared, std::string::npos) << streamed.output;
+  const std::string count =
+      streamed.output.substr(compared + 43, streamed.output.find_first_of(" ,\n", compared + 43) - compared - 43);
+  EXPECT_EQ(count.substr(0, count.find('/')), count.substr(count.find('/') + 1)) << count;
   const nlohmann::json memory = ReadJsonFile(dir / "memory/summary.json")["memory"];
   const nlohmann::json banded = ReadJsonFile(dir / "streamed/summary.json")["memory"];
   EXPECT_FALSE(memory["streamed"].get<bool>()) << memory.dump();
