@@ -6,6 +6,7 @@
 
 #include "thinslab/app/calibration_options.h"
 #include "thinslab/app/capture_options.h"
+#include "thinslab/app/command_progress.h"
 #include "thinslab/app/commands.h"
 #include "thinslab/app/option_parser.h"
 #include "thinslab/export/round_trip.h"
@@ -27,6 +28,7 @@ int RunRoundTrip(int argc, char** argv) {
   if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   Status status;
   run.options_ini = parser.ToIni();
+  run.progress = CommandProgress();
   if (status.ok()) status = RenderRoundTrip(run, std::cout);
   if (!status.ok()) return CommandFailed(status);
   return 0;

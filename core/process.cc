@@ -42,6 +42,17 @@ Status WaitProgram(pid_t pid, pid_t* ended, int* exit_code) {
   return Status::Ok();
 }
 
+Status PollProgram(pid_t pid, bool* ended, int* exit_code) {
+  int status = 0;
+  pid_t done;
+  while ((done = waitpid(pid, &status, WNOHANG)) < 0) {
+    if (errno != EINTR) return Status::Error(std::string("waiting for a child process: ") + std::strerror(errno));
+  }
+  *ended = done == pid;
+  if (*ended) *exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return Status::Ok();
+}
+
 Status RunProgram(const std::vector<std::string>& argv, const std::string& log_path, int* exit_code) {
   pid_t pid = 0;
   THINSLAB_RETURN_IF_ERROR(StartProgram(argv, log_path, &pid));

@@ -20,6 +20,9 @@ Status StartProgram(const std::vector<std::string>& argv, const std::string& log
 // when a signal ended it).
 Status WaitProgram(pid_t pid, pid_t* ended, int* exit_code);
 
+// Whether `pid` has ended, without waiting: *ended true with its exit code (as WaitProgram's).
+Status PollProgram(pid_t pid, bool* ended, int* exit_code);
+
 // StartProgram then WaitProgram.
 Status RunProgram(const std::vector<std::string>& argv, const std::string& log_path, int* exit_code);
 

@@ -1,9 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/export/round_trip.h"
 
+#include <signal.h>
+
+#include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <thread>
 #include <vector>
 
 #include "thinslab/core/exr_io.h"
@@ -133,6 +138,47 @@ Status RoundTripRun::Check() const {
   return Status::Ok();
 }
 
+namespace {
+
+// The render's passes: reference, shadow 1 and 2 (export/blender_scene's --passes).
+constexpr int kRenderPasses = 3;
+
+// Samples rendered so far, read from Cycles' log: passes finished ("Saved: '...'" lines) times
+// `samples`, plus the last "Sample N/M" of the pass under way.
+int64_t RenderedSamples(const std::string& log_text, int samples) {
+  int64_t done = 0;
+  size_t pass_start = 0;
+  for (size_t at = log_text.find("Saved: '"); at != std::string::npos; at = log_text.find("Saved: '", at + 1)) {
+    done += samples;
+    pass_start = at;
+  }
+  const size_t sample = log_text.rfind("| Sample ");
+  if (sample != std::string::npos && sample > pass_start) done += std::atoi(log_text.c_str() + sample + 9);
+  return done;
+}
+
+// Waits for Blender, reporting its samples every half second; a cancel stops it (SIGTERM).
+Status WaitForRender(pid_t blender, const std::string& log_path, int passes, int samples,
+                     const ProgressCallback& progress, int* exit_code) {
+  ProgressTracker tracker(progress, "roundtrip: Blender render (3 passes)", static_cast<int64_t>(passes) * samples);
+  for (;;) {
+    bool ended = false;
+    THINSLAB_RETURN_IF_ERROR(PollProgram(blender, &ended, exit_code));
+    std::string text;
+    if (progress && ReadFileToString(log_path, &text).ok() && !tracker.Report(RenderedSamples(text, samples))) {
+      if (!ended) {
+        kill(blender, SIGTERM);
+        THINSLAB_RETURN_IF_ERROR(WaitProgram(blender, nullptr, exit_code));
+      }
+      return Status::Error("RenderRoundTrip: cancelled");
+    }
+    if (ended) return Status::Ok();
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+}
+
+}  // namespace
+
 Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   THINSLAB_RETURN_IF_ERROR(run.Check());
   if (run.session_dir.empty()) return Status::Error("thinslab roundtrip: CAPTURE is required");
@@ -210,13 +256,15 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   log << "roundtrip: rendering " << width << "x" << height << " px at " << run.samples << " samples, 3 passes, with "
       << run.blender << " (log: " << JoinPath(JoinPath(out_dir, "scene"), "blender.log") << ")\n";
   int exit_code = 0;
-  const Status started =
-      RunProgram({run.blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python",
-                  JoinPath(scene_dir, "scene.py"), "--", "--passes", prefix, "--samples", std::to_string(run.samples)},
-                 blender_log, &exit_code);
+  pid_t blender = 0;
+  const Status started = StartProgram(
+      {run.blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python", JoinPath(scene_dir, "scene.py"),
+       "--", "--passes", prefix, "--samples", std::to_string(run.samples)},
+      blender_log, &blender);
   if (!started.ok()) {
     return Status::Error("--blender: " + started.message() + " (install Debian's blender package, or give its path)");
   }
+  THINSLAB_RETURN_IF_ERROR(WaitForRender(blender, blender_log, kRenderPasses, run.samples, run.progress, &exit_code));
   if (exit_code != 0) {
     std::string tail;
     if (!ReadFileToString(blender_log, &tail).ok()) tail = "(unreadable)";

@@ -19,6 +19,7 @@
 #include <string>
 
 #include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/progress.h"
 #include "thinslab/core/status.h"
 
 namespace thinslab {
@@ -35,6 +36,8 @@ struct RoundTripRun {
   SessionCalibrationOptions calibration;
   bool allow_incomplete_capture = false;
   std::string options_ini;  // The command's effective options (options.ini, the outputs' digest).
+  // The render's samples (three passes; read from Blender's log); cancelling stops Blender.
+  ProgressCallback progress;
 
   Status Check() const;  // Errors name the option (--samples, --downsample, --blender).
 };

@@ -66,8 +66,10 @@ TEST(CliRoundTrip, BlenderRenderOfTheFittedLayerReproducesTheCaptureAndPredict) 
                 " --camera-width-px 320 --camera-height-px 240 --photons 20000 --frames 2 --board-distance-mm 5 "
                 "--seed 3");
   RunThinslabOk("fit tau " + capture);
-  const RunResult run = RunThinslabOk("roundtrip " + capture + " --samples 32 --downsample 2");
+  const RunResult run = RunThinslabOk("roundtrip " + capture + " --samples 32 --downsample 2 --verbose");
   std::printf("%s\n", run.output.c_str());
+  // The render reports its samples, read from Blender's log: 3 passes of 32 (issue #26 item 4).
+  EXPECT_NE(run.output.find("roundtrip: Blender render (3 passes): 96/96"), std::string::npos) << run.output;
   const std::string out = capture + "/fit/roundtrip";
   const nlohmann::json summary = ReadJsonFile(out + "/summary.json");
   EXPECT_EQ(summary["format"], "thinslab-roundtrip-summary");
