@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <memory>
+#include <string>
 #include <utility>
 
 #include "thinslab/app/verbosity.h"
@@ -27,27 +28,34 @@ bool PrintToTerminal(const ProgressUpdate& u) {
   return true;
 }
 
-// --verbose into a log file: a line every few seconds instead of a rewritten terminal line.
-ProgressCallback PrintLines() {
-  auto last_s = std::make_shared<double>(-1e9);
-  return [last_s](const ProgressUpdate& u) {
-    if (u.done < u.total && u.elapsed_s - *last_s < 5) return true;
-    *last_s = u.elapsed_s;
-    std::fprintf(stderr, "%s: %lld/%lld, %.0f s", u.stage.c_str(), static_cast<long long>(u.done),
+}  // namespace
+
+// --verbose into a log file: a line every few seconds instead of a rewritten terminal line. The
+// interval is kept per stage (each stage's elapsed time starts at 0): a new stage name, or the
+// same stage started again, starts over.
+ProgressCallback ProgressLines(std::FILE* out, double interval_s) {
+  struct Last {
+    std::string stage;
+    double elapsed_s = -1e300;
+  };
+  auto last = std::make_shared<Last>();
+  return [last, out, interval_s](const ProgressUpdate& u) {
+    if (u.stage != last->stage || u.elapsed_s < last->elapsed_s) *last = Last{u.stage, -1e300};
+    if (u.done < u.total && u.elapsed_s - last->elapsed_s < interval_s) return true;
+    last->elapsed_s = u.elapsed_s;
+    std::fprintf(out, "%s: %lld/%lld, %.0f s", u.stage.c_str(), static_cast<long long>(u.done),
                  static_cast<long long>(u.total), u.elapsed_s);
-    if (u.eta_s >= 0 && u.done < u.total) std::fprintf(stderr, ", ETA %.0f s", u.eta_s);
-    std::fprintf(stderr, "\n");
+    if (u.eta_s >= 0 && u.done < u.total) std::fprintf(out, ", ETA %.0f s", u.eta_s);
+    std::fprintf(out, "\n");
     return true;
   };
 }
-
-}  // namespace
 
 ProgressCallback CommandProgress() {
   if (Override()) return Override();
   if (QuietRun()) return {};
   if (isatty(STDERR_FILENO)) return PrintToTerminal;
-  if (VerboseRun()) return PrintLines();
+  if (VerboseRun()) return ProgressLines(stderr);
   return {};
 }
 
