@@ -20,7 +20,7 @@ namespace {
 constexpr int kPointsPerReport = 4096;
 
 // body(first, count) over [first, first + count) in chunks of kPointsPerReport points, each
-// chunk reported to `progress` as `done_before` + the points done so far.
+// chunk reported to `progress` as `done_before` + the points of [first, ...) done so far.
 Status ForEachReportedChunk(int first, int count, ProgressTracker* progress, int64_t done_before, const char* what,
                             const std::function<void(int first, int count)>& body) {
   for (int start = first; start < first + count; start += kPointsPerReport) {
@@ -120,20 +120,21 @@ Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const
   const DmfNdfGrid grid(maps.ndf_resolution);
   const bool held_out = std::any_of(slices.train.begin(), slices.train.end(), [](uint8_t t) { return t == 0; });
   const int64_t n = slices.num_points();
-  ProgressTracker tracker(progress, "fit dmf: comparison with the ground truth",
-                          (held_out ? n : 0) + static_cast<int64_t>(regions.size()) * n);
   constexpr char kWhat[] = "CompareDmfWithTruth";
-  // Held-out errors first, one band of points at a time (streamed slices).
+  // Held-out errors first, one band of points at a time (streamed slices): the costly part, a
+  // stage of its own so that each ETA counts items of one cost.
   std::vector<double> held_out_error(slices.num_points(), -1);
   if (held_out) {
+    ProgressTracker errors(progress, "fit dmf: ground truth, held-out errors", n);
     THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
-      return ForEachReportedChunk(first, count, &tracker, 0, kWhat, [&](int start, int chunk) {
+      return ForEachReportedChunk(first, count, &errors, first, kWhat, [&](int start, int chunk) {
         ParallelFor(chunk, DefaultThreadCount(),
                     [&](int k) { held_out_error[start + k] = DmfHeldOutError(slices, maps, start + k); });
       });
     }));
   }
-  int64_t done = held_out ? n : 0;
+  ProgressTracker tracker(progress, "fit dmf: ground truth, regions", static_cast<int64_t>(regions.size()) * n);
+  int64_t done = 0;
   std::vector<DmfRegionAccuracy>& out = *accuracy;
   out.clear();
   for (const DmfTruthRegion& r : regions) {

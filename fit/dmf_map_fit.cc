@@ -439,6 +439,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     if (!streamed) {
       for (size_t s = 0; s < sample.size(); ++s) sample_shapes.row(s) = shapes.row(sample[s]);
       clusterer.FitProjection(sample_shapes);
+      clustering_progress.Report(1);
       ParallelFor(np, options.num_threads, [&](int p) {
         if (fit_me[p]) clusterer.Project(p, shapes, p);
       });
@@ -452,6 +453,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         sample_shapes.row(s) = shape.transpose();
       }
       clusterer.FitProjection(sample_shapes);
+      clustering_progress.Report(1);  // The principal components; their projections next.
       sample_shapes = Eigen::MatrixXf();
       // Half a band at a time: the rows as read and as a matrix take a band's shapes' memory.
       const int band = std::max(1, slices.spill->band_points() / 2);

@@ -40,11 +40,14 @@ TEST(CliDmfStreamed, SameMapsAsInMemoryBudgetHeldNothingLeftBehind) {
     EXPECT_NE(streamed.output.find(done), std::string::npos) << done << "\n" << streamed.output;
   }
   EXPECT_NE(streamed.output.find("fit dmf: point fits (Dai Eqs. 14-19): "), std::string::npos) << streamed.output;
-  // The ground-truth comparison: the held-out errors, then every region's pass over the points.
-  const size_t compared = streamed.output.rfind("fit dmf: comparison with the ground truth: ");
+  // The ground-truth comparison: the held-out errors counted over all bands (a count that
+  // restarted at each band never reached the total), then every region's pass over the points.
+  EXPECT_NE(streamed.output.find("fit dmf: ground truth, held-out errors: 1024/1024"), std::string::npos)
+      << streamed.output;
+  const size_t compared = streamed.output.rfind("fit dmf: ground truth, regions: ");
   ASSERT_NE(compared, std::string::npos) << streamed.output;
-  const std::string count =
-      streamed.output.substr(compared + 43, streamed.output.find_first_of(" ,\n", compared + 43) - compared - 43);
+  const size_t begin = compared + std::string("fit dmf: ground truth, regions: ").size();
+  const std::string count = streamed.output.substr(begin, streamed.output.find_first_of(" ,\n", begin) - begin);
   EXPECT_EQ(count.substr(0, count.find('/')), count.substr(count.find('/') + 1)) << count;
   const nlohmann::json memory = ReadJsonFile(dir / "memory/summary.json")["memory"];
   const nlohmann::json banded = ReadJsonFile(dir / "streamed/summary.json")["memory"];
