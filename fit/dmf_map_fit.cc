@@ -436,13 +436,21 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     clustering_progress.Report(0);
     const std::vector<int>& sample = clusterer.pca_sample();
     Eigen::MatrixXf sample_shapes(sample.size(), nodes);
+    // Every point's shape projected onto the principal components: a stage of its own (reading
+    // the shapes back from the shape file takes seconds at the paper's size).
+    ProgressTracker projection_progress(options.progress, "fit dmf: clustering, projections", np);
     if (!streamed) {
       for (size_t s = 0; s < sample.size(); ++s) sample_shapes.row(s) = shapes.row(sample[s]);
       clusterer.FitProjection(sample_shapes);
       clustering_progress.Report(1);
-      ParallelFor(np, options.num_threads, [&](int p) {
-        if (fit_me[p]) clusterer.Project(p, shapes, p);
-      });
+      constexpr int kProjectionChunk = 65536;
+      for (int first = 0; first < np; first += kProjectionChunk) {
+        const int count = std::min(kProjectionChunk, np - first);
+        ParallelFor(count, options.num_threads, [&](int k) {
+          if (fit_me[first + k]) clusterer.Project(first + k, shapes, first + k);
+        });
+        if (!projection_progress.Report(first + count)) return Status::Error("FitDualMicrofacetMaps: cancelled");
+      }
       shapes = Eigen::MatrixXf();
     } else {
       // The subsample's shapes, then every point's projection, one band at a time, from the
@@ -468,6 +476,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         ParallelFor(count, options.num_threads, [&](int k) {
           if (fit_me[first + k]) clusterer.Project(first + k, band_matrix, k);
         });
+        if (!projection_progress.Report(first + count)) return Status::Error("FitDualMicrofacetMaps: cancelled");
       }
     }
     if (!clustering_progress.Report(DmfShapeClusterer::kProjectionSteps)) {

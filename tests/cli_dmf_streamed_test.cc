@@ -35,8 +35,8 @@ TEST(CliDmfStreamed, SameMapsAsInMemoryBudgetHeldNothingLeftBehind) {
   // line of each counts the whole grid (32 x 32 points) or all its steps.
   for (const char* done :
        {"fit dmf: dot frames (HDR merge, Eq. 12): 100/100", "fit dmf: diffuse separation (Dai Eq. 14): 1024/1024",
-        "fit dmf: clustering (PCA, k-means, Dai Eq. 20): 20/20", "fit dmf: interpolation (Dai Eqs. 20-22): 1024/1024",
-        "fit dmf: held-out dots: 1024/1024"}) {
+        "fit dmf: clustering (PCA, k-means, Dai Eq. 20): 20/20", "fit dmf: clustering, projections: 1024/1024",
+        "fit dmf: interpolation (Dai Eqs. 20-22): 1024/1024", "fit dmf: held-out dots: 1024/1024"}) {
     EXPECT_NE(streamed.output.find(done), std::string::npos) << done << "\n" << streamed.output;
   }
   EXPECT_NE(streamed.output.find("fit dmf: point fits (Dai Eqs. 14-19): "), std::string::npos) << streamed.output;
