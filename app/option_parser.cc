@@ -365,12 +365,10 @@ Status OptionParser::Parse(int argc, char** argv) {
   bool verbosity[2] = {false, false};
   for (int k = 0; k < 2; ++k) {
     const std::string& raw = raw_verbosity_[k];
-    if (raw.empty()) continue;
-    if (!IsBooleanWord(raw)) {
+    if (!raw.empty() && !ConvertBool(raw, &verbosity[k])) {
       return Status::Error("thinslab " + command_ + ": option --" + (k == 0 ? "quiet" : "verbose") + " = '" + raw +
-                           "' is not a valid true/false");
+                           "' is not a valid " + kBooleanKind);
     }
-    verbosity[k] = raw == "true" || raw == "1" || raw == "yes";
   }
   if (verbosity[0] || verbosity[1]) SetVerbosity(verbosity[0], verbosity[1]);
   return Status::Ok();

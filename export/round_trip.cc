@@ -160,7 +160,8 @@ int64_t RenderedSamples(const std::string& log_text, int samples) {
 // Waits for Blender, reporting its samples every half second; a cancel stops it (SIGTERM).
 Status WaitForRender(pid_t blender, const std::string& log_path, int passes, int samples,
                      const ProgressCallback& progress, int* exit_code) {
-  ProgressTracker tracker(progress, "roundtrip: Blender render (3 passes)", static_cast<int64_t>(passes) * samples);
+  ProgressTracker tracker(progress, "roundtrip: Blender render (" + std::to_string(passes) + " passes)",
+                          static_cast<int64_t>(passes) * samples);
   for (;;) {
     bool ended = false;
     THINSLAB_RETURN_IF_ERROR(PollProgram(blender, &ended, exit_code));

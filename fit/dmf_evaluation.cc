@@ -20,13 +20,13 @@ namespace {
 constexpr int kPointsPerReport = 4096;
 
 // body(first, count) over [first, first + count) in chunks of kPointsPerReport points, each
-// chunk reported to `progress` as `done_before` + the points of [first, ...) done so far.
-Status ForEachReportedChunk(int first, int count, ProgressTracker* progress, int64_t done_before, const char* what,
+// chunk reported to `progress` as the points before its end (point index order).
+Status ForEachReportedChunk(int first, int count, ProgressTracker* progress, const char* what,
                             const std::function<void(int first, int count)>& body) {
   for (int start = first; start < first + count; start += kPointsPerReport) {
     const int n = std::min(kPointsPerReport, first + count - start);
     body(start, n);
-    if (progress != nullptr && !progress->Report(done_before + start - first + n)) {
+    if (progress != nullptr && !progress->Report(start + n)) {
       return Status::Error(std::string(what) + ": cancelled");
     }
   }
@@ -127,7 +127,7 @@ Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const
   if (held_out) {
     ProgressTracker errors(progress, "fit dmf: ground truth, held-out errors", n);
     THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
-      return ForEachReportedChunk(first, count, &errors, first, kWhat, [&](int start, int chunk) {
+      return ForEachReportedChunk(first, count, &errors, kWhat, [&](int start, int chunk) {
         ParallelFor(chunk, DefaultThreadCount(),
                     [&](int k) { held_out_error[start + k] = DmfHeldOutError(slices, maps, start + k); });
       });
@@ -360,9 +360,7 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
       }
     }
   };
-  auto points = [&](int first, int count) {
-    return ForEachReportedChunk(first, count, progress, first, what, score_chunk);
-  };
+  auto points = [&](int first, int count) { return ForEachReportedChunk(first, count, progress, what, score_chunk); };
   THINSLAB_RETURN_IF_ERROR(banded ? ForEachPointBand(slices, points) : points(0, slices.num_points()));
   for (size_t k = 0; k < out.size(); ++k) {
     if (!(den[k] > 0)) continue;
