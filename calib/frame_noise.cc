@@ -229,7 +229,22 @@ Status ResolveFrameNoise(const std::string& session_dir, const Session& session,
       samples.AddSingleFrame(frame, saturation, StrideFor(frame));
     }
   }
-  if (samples.level.size() < static_cast<size_t>(kMinSamples)) return Status::Ok();  // "default".
+  if (samples.level.size() < static_cast<size_t>(kMinSamples)) {
+    // Integer frames keep the old default (gain 1, read noise from the dark frames or 1 DN): a DN
+    // is a physical unit of the camera. Linear frames have no such unit, so any default would make
+    // every sigma depend on the scale their writer chose (issue #23); unless each frame brings its
+    // own variance file, refuse and say what to declare.
+    const bool every_frame_has_variance =
+        std::all_of(usable.begin(), usable.end(), [](const FrameRecord* f) { return !f->variance_file.empty(); });
+    if (camera.linear_frames() && !every_frame_has_variance) {
+      return Status::Error(JoinPath(session_dir, kSessionManifestName) + ": camera '" + camera.id +
+                           "': linear frames with no declared noise, and only " + std::to_string(samples.level.size()) +
+                           " unsaturated pixels to estimate it from (at least " + std::to_string(kMinSamples) +
+                           "); declare cameras[].gain_e_per_dn and read_noise_dn in the frames' value units, or give "
+                           "each frame a variance_file");
+    }
+    return Status::Ok();  // "default".
+  }
   return FitNoiseModel(samples, method, integer, model)
       .WithContext(JoinPath(session_dir, kSessionManifestName) + ": camera '" + camera.id + "'");
 }

@@ -73,8 +73,10 @@ Status FitNoiseModel(const NoiseSamples& samples, const std::string& method, boo
 // The noise of `camera`'s frames in a capture: the manifest's declaration when it gives the
 // gain (gain_e_per_dn > 0; with read_noise_dn the floor too), else an estimate from the usable
 // frames of that camera (pairs of frames of one light state and exposure where the capture has
-// them, else single frames), else the old default (gain 1, floor unknown) with method
-// "default". `saturation_dn` follows the camera (raw DN minus black level).
+// them, else single frames), else, for integer frames or linear frames that each bring a
+// variance_file, the old default (gain 1, floor unknown) with method "default"; linear frames
+// without either fail naming the camera. `saturation_dn` follows the camera (raw DN minus black
+// level).
 Status ResolveFrameNoise(const std::string& session_dir, const Session& session, const CameraInfo& camera,
                          FrameNoiseModel* model);
 

@@ -4,10 +4,14 @@
 // straight line the estimator fits only in expectation).
 #include "thinslab/calib/frame_noise.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
+#include <limits>
 #include <random>
 
-#include <gtest/gtest.h>
+#include "tests/testing/temp_dir.h"
+#include "thinslab/core/exr_io.h"
 
 namespace thinslab {
 namespace {
@@ -138,6 +142,47 @@ TEST(FrameNoise, TooFewPixelsIsAnError) {
   const Status status = FitNoiseModel(samples, "single_frame_residual", false, &model);
   EXPECT_FALSE(status.ok());
   EXPECT_NE(status.message().find("only 64 unsaturated pixels"), std::string::npos) << status.message();
+}
+
+// A capture too small to estimate its noise from (one 10 x 8 frame: 48 residual samples).
+// Integer frames keep the DN default; linear frames have no unit to default in, so they are
+// refused unless each frame brings its variance file.
+TEST(FrameNoise, TooSmallLinearCaptureWithoutDeclaredNoiseIsRefused) {
+  TempDir dir;
+  Image frame(10, 8, 100.0f);
+  ASSERT_TRUE(WriteExr(dir / "f0.exr", frame).ok());
+  ASSERT_TRUE(WriteExr(dir / "v0.exr", Image(10, 8, 4.0f)).ok());
+  Session session;
+  CameraInfo camera;
+  camera.id = "renderer";
+  camera.width_px = 10;
+  camera.height_px = 8;
+  camera.bit_depth = 32;
+  camera.frame_values = "linear";
+  camera.saturation_dn = std::numeric_limits<double>::infinity();
+  session.rig.cameras.push_back(camera);
+  FrameRecord record;
+  record.camera_id = camera.id;
+  record.kind = "reference";
+  record.file = "f0.exr";
+  record.exposure_time_us = 1;
+  session.frames.push_back(record);
+
+  FrameNoiseModel model;
+  Status status = ResolveFrameNoise(dir.path(), session, camera, &model);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("camera 'renderer': linear frames with no declared noise"), std::string::npos)
+      << status.message();
+  EXPECT_NE(status.message().find("gain_e_per_dn"), std::string::npos) << status.message();
+
+  session.frames[0].variance_file = "v0.exr";  // The frame's own variance: nothing to default.
+  ASSERT_TRUE(ResolveFrameNoise(dir.path(), session, camera, &model).ok());
+  EXPECT_EQ(model.method, "default");
+
+  camera.gain_e_per_dn = 2;  // Declared: no estimate needed.
+  session.frames[0].variance_file.clear();
+  ASSERT_TRUE(ResolveFrameNoise(dir.path(), session, camera, &model).ok());
+  EXPECT_EQ(model.method, "declared_gain");
 }
 
 TEST(FrameNoise, JsonRecordsTheMethodAndAnUnknownFloorAsNull) {
