@@ -5,10 +5,13 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numeric>
+#include <random>
 #include <sstream>
 #include <tuple>
 
 #include "thinslab/core/file.h"
+#include "thinslab/core/math.h"
 #include "thinslab/core/session_io.h"
 
 namespace thinslab {
@@ -20,6 +23,11 @@ constexpr int64_t kMinSamples = 200;
 constexpr int64_t kSamplesPerFrame = 250000;  // Enough for 64 levels of ~4000 samples.
 constexpr size_t kMaxFrames = 8;
 constexpr int64_t kMaxLevels = 64;
+// Weak-texture selection of single-frame samples (after Liu, Tanaka and Okutomi 2013, who select
+// patches by their gradients; here the mean squared residual of the 5 x 5 residuals around a
+// sample, which ignores the linear structure the residual cancels).
+constexpr double kWeakTextureQuantile = 0.99;
+constexpr int kWeakTextureIterations = 4;
 
 int StrideFor(const Image& frame) {
   const double pixels = static_cast<double>(frame.width()) * frame.height();
@@ -79,54 +87,94 @@ void NoiseSamples::AddRepeatedPair(const Image& a, const Image& b, double satura
   }
 }
 
+namespace {
+
+// Immerkaer's residual at (x, y) (interior pixels) and whether its 3 x 3 window touches a clipped
+// pixel; `sum` gets the window's sum.
+float ImmerkaerResidual(const Image& frame, int x, int y, double saturation, bool* clipped, float* sum) {
+  static constexpr float kMask[3][3] = {{1, -2, 1}, {-2, 4, -2}, {1, -2, 1}};
+  float r = 0, s = 0;
+  bool c = false;
+  for (int j = -1; j <= 1; ++j) {
+    for (int i = -1; i <= 1; ++i) {
+      const float v = frame.at(x + i, y + j);
+      c |= v >= saturation - 0.5;
+      r += kMask[j + 1][i + 1] * v;
+      s += v;
+    }
+  }
+  *clipped = c;
+  *sum = s;
+  return r / 6;  // The mask's squared coefficients sum to 36.
+}
+
+}  // namespace
+
 void NoiseSamples::AddSingleFrame(const Image& frame, double saturation, int stride) {
   const int w = frame.width(), h = frame.height();
-  static constexpr float kMask[3][3] = {{1, -2, 1}, {-2, 4, -2}, {1, -2, 1}};
-  for (int y = 1; y + 1 < h; y += stride) {
-    for (int x = 1; x + 1 < w; x += stride) {
-      float r = 0, sum = 0;
+  // The residual at every interior pixel, for the texture measure of each sample's neighbourhood.
+  Image residual_image(w, h, 0.0f);
+  std::vector<uint8_t> clipped_at(static_cast<size_t>(w) * h, 1);
+  for (int y = 1; y + 1 < h; ++y) {
+    for (int x = 1; x + 1 < w; ++x) {
       bool clipped = false;
-      for (int j = -1; j <= 1; ++j) {
-        for (int i = -1; i <= 1; ++i) {
-          const float v = frame.at(x + i, y + j);
-          clipped |= v >= saturation - 0.5;
-          r += kMask[j + 1][i + 1] * v;
-          sum += v;
+      float sum = 0;
+      residual_image.at(x, y) = ImmerkaerResidual(frame, x, y, saturation, &clipped, &sum);
+      clipped_at[static_cast<size_t>(y) * w + x] = clipped;
+    }
+  }
+  const int r = kTextureRadius;
+  for (int y = 1 + r; y + 1 + r < h; y += stride) {
+    for (int x = 1 + r; x + 1 + r < w; x += stride) {
+      bool clipped = false;
+      float sum = 0;
+      const float res = ImmerkaerResidual(frame, x, y, saturation, &clipped, &sum);
+      double energy = 0;
+      for (int j = -r; j <= r && !clipped; ++j) {
+        for (int i = -r; i <= r; ++i) {
+          clipped |= clipped_at[static_cast<size_t>(y + j) * w + x + i] != 0;
+          energy += Sqr(residual_image.at(x + i, y + j));
         }
       }
       if (clipped) continue;
       level.push_back(sum / 9);
-      residual.push_back(r / 6);  // The mask's squared coefficients sum to 36.
+      residual.push_back(res);
+      texture.push_back(static_cast<float>(energy / Sqr(2 * r + 1)));
     }
   }
 }
 
-Status FitNoiseModel(const NoiseSamples& samples, const std::string& method, bool integer_frames,
-                     FrameNoiseModel* model) {
-  const int64_t n = static_cast<int64_t>(samples.level.size());
-  if (n < kMinSamples) {
-    return Status::Error("noise estimate (" + method + "): only " + std::to_string(n) +
-                         " unsaturated pixels to estimate from (at least " + std::to_string(kMinSamples) + ")");
-  }
-  std::vector<int64_t> order(n);
-  for (int64_t i = 0; i < n; ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](int64_t a, int64_t b) { return samples.level[a] < samples.level[b]; });
+namespace {
+
+struct NoiseLine {
+  double floor = 0, slope = 0, max_abs_level = 0;
+  int bins = 0;
+};
+
+// The Poisson-Gaussian line through the samples `use` (indices into `samples`), each bin's
+// robust variance multiplied by `variance_scale`.
+NoiseLine FitLine(const NoiseSamples& samples, std::vector<int64_t> use, double variance_scale) {
+  NoiseLine line;
+  const int64_t n = static_cast<int64_t>(use.size());
+  std::sort(use.begin(), use.end(), [&](int64_t a, int64_t b) {
+    return samples.level[a] < samples.level[b] || (samples.level[a] == samples.level[b] && a < b);
+  });
   // Narrow bins: a bin's median |r| of a mixture of variances falls below the mixture's mean
   // variance, so a bin spanning 0..2x its level would bias the floor low.
   const int bins = static_cast<int>(std::clamp<int64_t>(n / 1000, 1, kMaxLevels));
   std::vector<double> bin_level, bin_var, bin_count;
   std::vector<float> abs_residual;
-  double max_abs_level = 0;
   for (int b = 0; b < bins; ++b) {
     const int64_t i0 = n * b / bins, i1 = n * (b + 1) / bins;
     abs_residual.clear();
-    for (int64_t i = i0; i < i1; ++i) abs_residual.push_back(std::abs(samples.residual[order[i]]));
+    for (int64_t i = i0; i < i1; ++i) abs_residual.push_back(std::abs(samples.residual[use[i]]));
     // The bin's median level: the top bin may reach far into a bright spike, whose mean would
     // give that bin a lever that tilts the whole line.
-    const double level = samples.level[order[(i0 + i1) / 2]];
-    max_abs_level = std::max<double>({max_abs_level, std::abs(samples.level[order[i0]]), std::abs(samples.level[order[i1 - 1]])});
+    const double level = samples.level[use[(i0 + i1) / 2]];
+    line.max_abs_level =
+        std::max<double>({line.max_abs_level, std::abs(samples.level[use[i0]]), std::abs(samples.level[use[i1 - 1]])});
     bin_level.push_back(level);
-    bin_var.push_back(std::pow(kMadToSigma * MedianOf(&abs_residual), 2));
+    bin_var.push_back(variance_scale * std::pow(kMadToSigma * MedianOf(&abs_residual), 2));
     bin_count.push_back(static_cast<double>(i1 - i0));
   }
   // Weighted least squares of var = a + b * max(level, 0) with weights count / var^2: each bin's
@@ -135,15 +183,14 @@ Status FitNoiseModel(const NoiseSamples& samples, const std::string& method, boo
   for (double v : bin_var) positive_var = std::max(positive_var, v);
   const double tiny = positive_var * 1e-12;
   double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
-  std::vector<double> weight(bins);
   for (int b = 0; b < bins; ++b) {
-    weight[b] = bin_count[b] / std::pow(std::max(bin_var[b], tiny), 2);
+    const double weight = bin_count[b] / std::pow(std::max(bin_var[b], tiny), 2);
     const double x = std::max(bin_level[b], 0.0);
-    sw += weight[b];
-    sx += weight[b] * x;
-    sy += weight[b] * bin_var[b];
-    sxx += weight[b] * x * x;
-    sxy += weight[b] * x * bin_var[b];
+    sw += weight;
+    sx += weight * x;
+    sy += weight * bin_var[b];
+    sxx += weight * x * x;
+    sxy += weight * x * bin_var[b];
   }
   const double det = sw * sxx - sx * sx;
   double floor = positive_var > 0 ? sy / sw : 0, slope = 0;
@@ -159,17 +206,88 @@ Status FitNoiseModel(const NoiseSamples& samples, const std::string& method, boo
     floor = 0;
     slope = sxx > 0 ? sxy / sxx : 0;
   }
+  line.floor = floor;
+  line.slope = slope;
+  line.bins = bins;
+  return line;
+}
+
+// What the texture measure of a single-frame sample does on pure noise (unit variance,
+// independent pixels; by simulation, once): the quantile below which a sample counts as weak
+// texture, and the factor by which keeping only those lowers the residual's robust variance (the
+// measure includes the sample's own residual).
+struct PureNoiseTexture {
+  double threshold = 0;        // kWeakTextureQuantile of texture / variance.
+  double variance_factor = 1;  // (MAD of the kept residuals / MAD of all)^2.
+};
+
+const PureNoiseTexture& PureNoise() {
+  static const PureNoiseTexture constants = [] {
+    constexpr int kSize = 384;
+    std::mt19937_64 rng(20261206);
+    std::normal_distribution<double> normal(0, 1);
+    Image frame(kSize, kSize);
+    for (float& v : frame.data()) v = static_cast<float>(normal(rng));
+    NoiseSamples samples;
+    samples.AddSingleFrame(frame, std::numeric_limits<double>::infinity(), 1);
+    PureNoiseTexture c;
+    std::vector<float> texture = samples.texture;
+    const size_t q = static_cast<size_t>(kWeakTextureQuantile * (texture.size() - 1));
+    std::nth_element(texture.begin(), texture.begin() + q, texture.end());
+    c.threshold = texture[q];
+    std::vector<float> all, kept;
+    for (size_t i = 0; i < samples.residual.size(); ++i) {
+      all.push_back(std::abs(samples.residual[i]));
+      if (samples.texture[i] <= c.threshold) kept.push_back(std::abs(samples.residual[i]));
+    }
+    c.variance_factor = std::pow(MedianOf(&kept) / MedianOf(&all), 2);
+    return c;
+  }();
+  return constants;
+}
+
+}  // namespace
+
+Status FitNoiseModel(const NoiseSamples& samples, const std::string& method, bool integer_frames,
+                     FrameNoiseModel* model) {
+  const int64_t n = static_cast<int64_t>(samples.level.size());
+  if (n < kMinSamples) {
+    return Status::Error("noise estimate (" + method + "): only " + std::to_string(n) +
+                         " unsaturated pixels to estimate from (at least " + std::to_string(kMinSamples) + ")");
+  }
+  std::vector<int64_t> all(n);
+  std::iota(all.begin(), all.end(), 0);
+  NoiseLine line = FitLine(samples, all, 1.0);
+  int64_t used = n;
+  // Single frames: keep the samples whose neighbourhood looks like noise at the current line (its
+  // mean squared residual below the pure-noise quantile), refit, and repeat while the kept set
+  // changes. Structure at the scale of a pixel (a sharp dot image, an edge) inflates the residual
+  // where it is; texture everywhere cannot be told from noise in one frame.
+  if (samples.texture.size() == samples.level.size()) {
+    const PureNoiseTexture& pure = PureNoise();
+    for (int iteration = 0; iteration < kWeakTextureIterations; ++iteration) {
+      std::vector<int64_t> weak;
+      for (int64_t i = 0; i < n; ++i) {
+        const double variance = line.floor + line.slope * std::max(0.0f, samples.level[i]);
+        if (samples.texture[i] <= pure.threshold * variance) weak.push_back(i);
+      }
+      if (static_cast<int64_t>(weak.size()) < kMinSamples || static_cast<int64_t>(weak.size()) == used) break;
+      used = static_cast<int64_t>(weak.size());
+      line = FitLine(samples, std::move(weak), 1.0 / pure.variance_factor);
+    }
+  }
+  double floor = line.floor;
   if (integer_frames) floor = std::max(floor, 1.0 / 12);  // Quantisation of integer values.
   if (floor <= 0) {
     // Noise-free frames (a renderer's converged output): a floor 1e-6 of the largest level keeps
     // the variances positive without making the data look noisy; scale-equivariant.
-    floor = max_abs_level > 0 ? std::pow(1e-6 * max_abs_level, 2) : 1.0;
+    floor = line.max_abs_level > 0 ? std::pow(1e-6 * line.max_abs_level, 2) : 1.0;
   }
   model->variance_floor = floor;
-  model->variance_per_value = slope;
+  model->variance_per_value = line.slope;
   model->method = method;
-  model->samples = n;
-  model->levels = bins;
+  model->samples = used;
+  model->levels = line.bins;
   return Status::Ok();
 }
 

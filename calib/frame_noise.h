@@ -16,8 +16,13 @@
 //    the variance of one frame at the level (a + b) / 2, whatever the scene's texture.
 //  - A single frame: Immerkaer's (1996) residual, the image convolved with
 //    [1 -2 1; -2 4 -2; 1 -2 1] / 6, which cancels constant and linear structure and has the
-//    frame's noise variance. Texture finer than the camera pixel inflates it; the per-level
-//    median (not the mean) keeps sparse edges from doing so.
+//    frame's noise variance. Structure at the scale of a pixel inflates it, so only weak-texture
+//    samples are kept (after Liu, Tanaka and Okutomi 2013): those whose 5 x 5 neighbourhood of
+//    residuals has a mean square below the 99 % quantile pure noise would give at the fitted
+//    line's variance, iterated with the line; the robust variance of the kept samples is
+//    corrected by the factor that selection has on pure noise (both by simulation, once).
+//    Texture finer than the camera everywhere still reads as noise; the per-level median (not
+//    the mean) keeps what is left of sparse edges from doing so.
 // Per signal level (up to 64 equal-count bins of the local mean, narrow so that a bin does not
 // mix very different variances) the variance is the squared robust
 // sigma 1.4826 * median|r|; a least-squares line through the bins, weighted by count / var^2
@@ -62,6 +67,10 @@ struct FrameNoiseModel {
 // black-subtracted saturation level (pixels at or above it, and their neighbours, are left out).
 struct NoiseSamples {
   std::vector<float> level, residual;  // residual has the variance of one frame value at level.
+  // Single frames only: the mean squared residual of the 5 x 5 residuals around the sample,
+  // which the fit compares with the noise its line predicts to leave textured places out.
+  std::vector<float> texture;
+  static constexpr int kTextureRadius = 2;
   void AddRepeatedPair(const Image& a, const Image& b, double saturation, int stride);
   void AddSingleFrame(const Image& frame, double saturation, int stride);
 };

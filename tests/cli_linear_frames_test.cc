@@ -172,11 +172,10 @@ TEST(LinearFramesDotScan, DmfFitAndLadderAreInvariantToTheValueScale) {
   }
   ExpectNoiseScales(summary[0], summary[1], kScale);
   EXPECT_NEAR(std::sqrt(summary[0]["noise"]["variance_floor"].get<double>()), 6.0, 0.6);
-  // A single-frame residual reads a dot's lobe, a few pixels wide, partly as noise: the slope
-  // comes out high (measured 1.43 for the true 1; docs/known_gaps.md), never low, so sigmas err
-  // on the safe side. The bound catches an estimator that loses the shot noise or doubles it.
-  EXPECT_GE(summary[0]["noise"]["variance_per_value"].get<double>(), 0.9);
-  EXPECT_LE(summary[0]["noise"]["variance_per_value"].get<double>(), 1.6);
+  // The sharp dot images behind the smooth regions are structure at the scale of a pixel, which
+  // the single-frame estimate leaves out by its weak-texture selection (measured 1.01 for the true
+  // 1; 1.43 when every sample counted, before 2026-12-06).
+  EXPECT_NEAR(summary[0]["noise"]["variance_per_value"].get<double>(), 1.0, 0.1);
   EXPECT_EQ(summary[0]["status_counts"], summary[1]["status_counts"]);
   EXPECT_EQ(summary[0]["ladder"]["rung_counts"], summary[1]["ladder"]["rung_counts"]);
   // Measured: rungs 0 (36), 3 (180), 4 (128), 5 (56): the ladder uses more than one rung.
