@@ -5,6 +5,7 @@
 // the unchanged dot-scan session, processed (dot geometry, HDR, rectification, Eq. 12) and
 // fitted with the dual-microfacet model; every other dot is held out.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -41,7 +42,10 @@ struct RegionStats {
 class DmfEndToEnd : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new std::string((std::filesystem::temp_directory_path() / "thinslab_e2e_dmf").string());
+    // One folder per process: tests/e2e_dmf_cli_ladder_test runs this suite's binary too, possibly
+    // at the same time (ctest -j), and each removes its folder at the start and the end.
+    dir_ = new std::string(
+        (std::filesystem::temp_directory_path() / ("thinslab_e2e_dmf_" + std::to_string(getpid()))).string());
     std::filesystem::remove_all(*dir_);
     SyntheticDotScanOptions sim;
     sim.session.grid_nx = 20;
