@@ -14,6 +14,8 @@
 //  - Cluster centres are found by k-means++ and Lloyd iterations on a random subsample, then
 //    every point is assigned; the representative of a cluster is its member nearest the centre
 //    (a real point, fitted with its own data).
+//  - Nearest centres and representatives are found exactly but without comparing every point with
+//    every one of them (fit/nearest_rows.h), so the cost grows about as points^1.5, not points^2.
 //  - N_i: the num_neighbors representatives nearest to point i; weights solve Eqs. 21-22 in the
 //    least-squares sense with w >= 0 (AffineNonNegativeWeights, an exact active-set solver), so
 //    interpolated NDFs stay non-negative.
@@ -55,6 +57,9 @@ struct DmfClustering {
   std::vector<int> cluster;         // k-means cluster of each point (-1 for excluded points).
   double pca_explained = 0;         // Fraction of the shape variance the projection keeps.
   double mean_weight_residual = 0;  // Mean relative residual of Eq. 21 in the projection.
+  // Nearest-neighbour queries (Lloyd iterations, assignment, Eq. 20) that the anchors' lists could
+  // not settle and that compared every target (fit/nearest_rows.h).
+  int64_t exhaustive_searches = 0;
 };
 
 // `shapes`: one row per point (normalised training slice, see above); `valid[p]` false excludes
