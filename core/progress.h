@@ -28,7 +28,7 @@ struct ProgressUpdate {
 // Returns false to cancel.
 using ProgressCallback = std::function<bool(const ProgressUpdate&)>;
 
-// One stage's reports: elapsed time, ETA from the rate so far, at most one call per
+// One stage's reports: elapsed time, ETA from the rate since the first report, at most one call per
 // `min_interval_s` (and always at the first and the last item). Cancellation is sticky and may
 // be read from any thread (cancelled()); Report() must be called on the calling thread only.
 class ProgressTracker {
@@ -50,7 +50,16 @@ class ProgressTracker {
     if (!edge && now - last_report_s_ < min_interval_s_) return true;
     update_.done = std::clamp<int64_t>(done, 0, update_.total);
     update_.elapsed_s = now;
-    update_.eta_s = update_.done > 0 ? now * static_cast<double>(update_.total - update_.done) / update_.done : -1;
+    if (!reported_) {
+      origin_s_ = now;
+      origin_done_ = update_.done;
+    }
+    // The rate since the first report: work before it (a band read from disk, a set-up) is not
+    // the rate of the items (an ETA of 968 248 s after 1 point in 3 s of reading a band).
+    update_.eta_s = update_.done > origin_done_
+                        ? (now - origin_s_) * static_cast<double>(update_.total - update_.done) /
+                              static_cast<double>(update_.done - origin_done_)
+                        : -1;
     last_report_s_ = now;
     reported_ = true;
     if (!callback_(update_)) cancelled_ = true;
@@ -65,6 +74,8 @@ class ProgressTracker {
   std::chrono::steady_clock::time_point start_;
   double min_interval_s_;
   double last_report_s_ = 0;
+  double origin_s_ = 0;  // Time and count of the first report, where the rate starts.
+  int64_t origin_done_ = 0;
   bool reported_ = false;
   std::atomic<bool> cancelled_{false};
 };

@@ -66,6 +66,27 @@ TEST(Progress, EtaFromTheRateAndRateLimitedCalls) {
   EXPECT_EQ(updates.back().eta_s, 0);
 }
 
+// A stage whose first report comes after its first item (the set-up before it is not the items'
+// rate): no ETA until a second count, then the rate since that first report.
+TEST(Progress, EtaStartsAtTheFirstReport) {
+  std::vector<ProgressUpdate> updates;
+  const ProgressCallback callback = [&](const ProgressUpdate& u) {
+    updates.push_back(u);
+    return true;
+  };
+  ProgressTracker tracker(callback, "banded", 1000, 0.0);
+  tracker.Report(1);
+  tracker.Report(500);
+  tracker.Report(1000);
+  ASSERT_EQ(updates.size(), 3u);
+  EXPECT_EQ(updates[0].eta_s, -1);
+  EXPECT_GE(updates[1].eta_s, 0);
+  // At most the time since the first report (499 items took it, 500 are left): not scaled by the
+  // total time over 1 item.
+  EXPECT_LE(updates[1].eta_s, 1.01 * (updates[1].elapsed_s - updates[0].elapsed_s) + 1e-9);
+  EXPECT_EQ(updates[2].eta_s, 0);
+}
+
 TEST(Progress, NoCallbackNeverCancels) {
   const ProgressCallback none;
   ProgressTracker tracker(none, "quiet", 3);
