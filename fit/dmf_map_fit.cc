@@ -125,11 +125,8 @@ Status ForEachPointBand(const DmfSliceSet& slices, const std::function<Status(in
   return Status::Ok();
 }
 
-Status LoadPointBandOf(const DmfSliceSet& slices, int p) {
-  if (!slices.spill) return Status::Ok();
-  const int band = slices.spill->band_points();
-  const int first = (p / band) * band;
-  return slices.spill->LoadBand(first, std::min(band, slices.num_points() - first));
+Status LoadPoint(const DmfSliceSet& slices, int p) {
+  return slices.spill ? slices.spill->LoadBand(p, 1) : Status::Ok();
 }
 
 Status DmfSliceSet::Check() const {
@@ -341,7 +338,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   SliceShapeGrid shape_grid;
   if (options.cluster) {
     const int centre = (slices.height / 2) * slices.width + slices.width / 2;
-    THINSLAB_RETURN_IF_ERROR(LoadPointBandOf(slices, centre));
+    THINSLAB_RETURN_IF_ERROR(LoadPoint(slices, centre));
     shape_grid = MakeSliceShapeGrid(slices.Slice(centre), std::max(slices.dots_nx, slices.dots_ny));
     if (!streamed) shapes.setZero(np, shape_grid.num_nodes());
   }
@@ -633,7 +630,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
                        : ": not fitted directly in the maps (clustered run: interpolated, Eqs. 20-22; or no lobe); its own fit:\n");
     DmfPointFitOptions traced = options.point;
     traced.trace = &out;
-    THINSLAB_RETURN_IF_ERROR(LoadPointBandOf(slices, p));
+    THINSLAB_RETURN_IF_ERROR(LoadPoint(slices, p));
     const DmfPointFit alone = FitDualMicrofacetPoint(slices.Slice(p), grid, traced);
     const DmfPointFit& in_maps = maps->fits[p];
     out << "  alone: status " << DmfStatusName(alone.status) << "; in the maps: status " << DmfStatusName(in_maps.status)

@@ -159,9 +159,9 @@ struct DmfMaps {
 // as in memory.
 Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& options, DmfMaps* maps);
 
-// Loads the band of the spill that holds point p (ForEachPointBand's bands); nothing when the
-// slices are in memory.
-Status LoadPointBandOf(const DmfSliceSet& slices, int p);
+// Loads point p alone from the spill (a band of one point: one small read per dot, where its
+// whole band took seconds at the paper's size); nothing when the slices are in memory.
+Status LoadPoint(const DmfSliceSet& slices, int p);
 
 // Relative RMS error over the held-out in-lobe dots of point p (HeldOutRelativeRms), -1 if none;
 // p must be loaded (ForEachPointBand).
