@@ -112,14 +112,16 @@ float ImmerkaerResidual(const Image& frame, int x, int y, double saturation, boo
 
 void NoiseSamples::AddSingleFrame(const Image& frame, double saturation, int stride) {
   const int w = frame.width(), h = frame.height();
-  // The residual at every interior pixel, for the texture measure of each sample's neighbourhood.
-  Image residual_image(w, h, 0.0f);
+  // The residual and the 3 x 3 mean at every interior pixel, once: each sample's texture measure
+  // reads the residuals of its whole neighbourhood.
+  Image residual_image(w, h, 0.0f), mean_image(w, h, 0.0f);
   std::vector<uint8_t> clipped_at(static_cast<size_t>(w) * h, 1);
   for (int y = 1; y + 1 < h; ++y) {
     for (int x = 1; x + 1 < w; ++x) {
       bool clipped = false;
       float sum = 0;
       residual_image.at(x, y) = ImmerkaerResidual(frame, x, y, saturation, &clipped, &sum);
+      mean_image.at(x, y) = sum / 9;
       clipped_at[static_cast<size_t>(y) * w + x] = clipped;
     }
   }
@@ -127,8 +129,6 @@ void NoiseSamples::AddSingleFrame(const Image& frame, double saturation, int str
   for (int y = 1 + r; y + 1 + r < h; y += stride) {
     for (int x = 1 + r; x + 1 + r < w; x += stride) {
       bool clipped = false;
-      float sum = 0;
-      const float res = ImmerkaerResidual(frame, x, y, saturation, &clipped, &sum);
       double energy = 0;
       for (int j = -r; j <= r && !clipped; ++j) {
         for (int i = -r; i <= r; ++i) {
@@ -137,8 +137,8 @@ void NoiseSamples::AddSingleFrame(const Image& frame, double saturation, int str
         }
       }
       if (clipped) continue;
-      level.push_back(sum / 9);
-      residual.push_back(res);
+      level.push_back(mean_image.at(x, y));
+      residual.push_back(residual_image.at(x, y));
       texture.push_back(static_cast<float>(energy / Sqr(2 * r + 1)));
     }
   }

@@ -50,12 +50,17 @@ TEST(Progress, CancellingStopsTheLoopEarly) {
   EXPECT_EQ(calls, after);  // No callback once cancelled.
 }
 
-TEST(Progress, EtaFromTheRateAndRateLimitedCalls) {
-  std::vector<ProgressUpdate> updates;
-  const ProgressCallback callback = [&](const ProgressUpdate& u) {
-    updates.push_back(u);
+// A callback that keeps every update and never cancels.
+ProgressCallback RecordInto(std::vector<ProgressUpdate>* updates) {
+  return [updates](const ProgressUpdate& u) {
+    updates->push_back(u);
     return true;
   };
+}
+
+TEST(Progress, EtaFromTheRateAndRateLimitedCalls) {
+  std::vector<ProgressUpdate> updates;
+  const ProgressCallback callback = RecordInto(&updates);
   ProgressTracker tracker(callback, "slow", 10, 3600.0);
   for (int k = 0; k <= 10; ++k) tracker.Report(k);
   // First and last only: the interval is an hour.
@@ -70,10 +75,7 @@ TEST(Progress, EtaFromTheRateAndRateLimitedCalls) {
 // rate): no ETA until a second count, then the rate since that first report.
 TEST(Progress, EtaStartsAtTheFirstReport) {
   std::vector<ProgressUpdate> updates;
-  const ProgressCallback callback = [&](const ProgressUpdate& u) {
-    updates.push_back(u);
-    return true;
-  };
+  const ProgressCallback callback = RecordInto(&updates);
   ProgressTracker tracker(callback, "banded", 1000, 0.0);
   tracker.Report(1);
   tracker.Report(500);

@@ -137,7 +137,7 @@ void DmfShapeClusterer::FitProjection(const Eigen::MatrixXf& sample_shapes) {
   // The lower triangle in blocks of columns on the threads: each block is one product whose sums
   // do not depend on the threads (a single product of the whole matrix ran on one core and
   // computed both triangles: 4.7 of the 9.7 s of 1600 nodes).
-  Eigen::MatrixXd covariance(dims, dims);
+  Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(dims, dims);  // Upper triangle unused, but defined.
   constexpr int kBlockColumns = 64;
   const int blocks = (dims + kBlockColumns - 1) / kBlockColumns;
   const double scale = 1.0 / std::max<size_t>(1, sample_.size() - 1);
