@@ -3,11 +3,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <iomanip>
 #include <limits>
 #include <sstream>
 
+#include "thinslab/core/camera_model.h"
 #include "thinslab/core/duration_text.h"
+#include "thinslab/core/math.h"
 #include "thinslab/core/statistics.h"
 #include "thinslab/drivers/pattern_id.h"
 
@@ -88,19 +91,28 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
   std::string longest_reason = "the cap (" + DurationText(options.max_exposure_us) + ")";
   double edge_us = 0;
   std::string edge_label;
+  bool edge_measured_snr = false;
   for (const ProbeMeasurement& lobe : lobes) {
     if (!(lobe.peak_dn_per_us > 0)) continue;
-    const double t =
-        EdgeExposureUs(options.edge_fraction * lobe.peak_dn_per_us, glow, read_dn, gain, options.edge_sigmas);
+    // A mean with its own measured signal to noise grows as sqrt(t) under shot noise.
+    const double t = lobe.snr > 0 ? lobe.exposure_us * Sqr(options.edge_sigmas / lobe.snr)
+                                  : EdgeExposureUs(options.edge_fraction * lobe.peak_dn_per_us, glow, read_dn, gain,
+                                                   options.edge_sigmas);
     if (t > edge_us) {
       edge_us = t;
       edge_label = lobe.label;
+      edge_measured_snr = lobe.snr > 0;
     }
   }
   if (edge_us > 0 && edge_us < longest) {
     longest = edge_us;
-    longest_reason = "the edge (" + Num(100 * options.edge_fraction) + " % of the peak) of the dimmest probed lobe, " +
-                     edge_label + ", at " + Num(options.edge_sigmas) + " sigma";
+    longest_reason = edge_measured_snr ? edge_label + " at " + Num(options.edge_sigmas) + " standard errors"
+                                       : "the edge (" + Num(100 * options.edge_fraction) +
+                                             " % of the peak) of the dimmest probed lobe, " + edge_label + ", at " +
+                                             Num(options.edge_sigmas) + " sigma";
+  } else if (edge_us > longest) {
+    longest_reason += "; " + edge_label + " would need " + DurationText(edge_us) + " for " + Num(options.edge_sigmas) +
+                      (edge_measured_snr ? " standard errors" : " sigma");
   }
   if (glow > 0 && options.max_dark_fraction * range / glow < longest) {
     longest = options.max_dark_fraction * range / glow;
@@ -138,20 +150,23 @@ namespace {
 // One probe state: shown, settled, measured; the exposure halved while it saturates.
 class Prober {
  public:
-  Prober(Camera* camera, Projector* projector, const ExposurePlanOptions& options, double refresh_period_s)
-      : camera_(camera), projector_(projector), options_(options), period_us_(refresh_period_s * 1e6) {}
+  Prober(Camera* camera, const ExposurePlanOptions& options, double refresh_period_s)
+      : camera_(camera), options_(options), period_us_(refresh_period_s * 1e6) {}
 
-  // `bright`: the 3 x 3 peak (else the 99th percentile); starting at `start_us`.
-  Status Measure(const std::string& label, const std::string& pattern, bool bright, double start_us,
+  // `show` puts the rig in the state; `bright`: the brightest pixel (else the 99th percentile);
+  // starting at `start_us`.
+  Status Measure(const std::string& label, const std::function<Status()>& show, bool bright, double start_us,
                  ProbeMeasurement* m) {
     *m = ProbeMeasurement();
     m->label = label;
-    THINSLAB_RETURN_IF_ERROR(projector_->ShowPattern(pattern).WithContext("exposure probe: " + label));
+    THINSLAB_RETURN_IF_ERROR(show().WithContext("exposure probe: " + label));
     const CameraInfo& info = camera_->info();
     const double range = info.saturation_dn - info.black_level_dn;
     const double shortest = period_us_ > 0 ? period_us_ : 1.0;
-    for (double t = start_us;;
-         t = std::max(shortest, period_us_ > 0 ? std::floor(t / 2 / period_us_) * period_us_ : t / 2)) {
+    // Halved while it saturates; lengthened 16-fold (up to the cap) while a bright state's peak
+    // is below 2 % of the range, where the brightest pixel is the noise's, not the light's.
+    bool shortened = false;
+    for (double t = start_us;;) {
       double applied = 0;
       THINSLAB_RETURN_IF_ERROR(camera_->SetExposure(t, &applied).WithContext("exposure probe: " + label));
       CapturedFrame frame;
@@ -169,16 +184,39 @@ class Prober {
       m->exposure_us = frame.exposure_time_us > 0 ? frame.exposure_time_us : applied;
       m->peak_dn_per_us = std::max(level, 0.0) / m->exposure_us;
       m->saturated = level >= 0.9 * range;
-      if (!m->saturated || t <= shortest) return Status::Ok();
+      if (m->saturated && t > shortest) {
+        shortened = true;
+        t = std::max(shortest, period_us_ > 0 ? std::floor(t / 2 / period_us_) * period_us_ : t / 2);
+      } else if (bright && !shortened && level < 0.02 * range && t < options_.max_exposure_us) {
+        t = std::min(16 * t, options_.max_exposure_us);
+        if (period_us_ > 0) t = std::max(1.0, std::floor(t / period_us_)) * period_us_;
+      } else {
+        return Status::Ok();
+      }
     }
   }
 
  private:
   Camera* camera_;
-  Projector* projector_;
   const ExposurePlanOptions& options_;
   double period_us_;
 };
+
+// A state lit by one source, probed (`Measure`), and the exposure that puts its brightest pixel
+// at peak_fill of the range: whole refresh periods (period_us > 0), within min..max_exposure_us.
+Status ProbeFillExposure(Prober* prober, const std::string& label, const std::function<Status()>& show, double start_us,
+                         const std::string& source, double range, double period_us, const ExposurePlanOptions& options,
+                         ProbeMeasurement* m, double* exposure_us) {
+  THINSLAB_RETURN_IF_ERROR(prober->Measure(label, show, true, start_us, m));
+  if (!(m->peak_dn_per_us > 0)) {
+    return Status::Error("exposure probe: " + label + " shows no light: is " + source + " on and aimed at the board?");
+  }
+  double t = std::min(std::max(options.peak_fill * range / m->peak_dn_per_us, options.min_exposure_us),
+                      options.max_exposure_us);
+  if (period_us > 0) t = std::max(1.0, std::floor(t / period_us)) * period_us;
+  *exposure_us = t;
+  return Status::Ok();
+}
 
 }  // namespace
 
@@ -190,27 +228,216 @@ Status ProbeAndPlanDotScanExposures(Camera* camera, Projector* projector, const 
   if (!options.Check(&error)) return Status::Error(error);
   const double period_us = refresh_period_s * 1e6;
   const double probe_us = options.probe_exposure_us > 0 ? options.probe_exposure_us : period_us > 0 ? period_us : 1000;
-  Prober prober(camera, projector, options, refresh_period_s);
+  Prober prober(camera, options, refresh_period_s);
+  auto show = [projector](const std::string& pattern) {
+    return [projector, pattern]() { return projector->ShowPattern(pattern); };
+  };
   ProbeMeasurement brightest, black;
   std::vector<ProbeMeasurement> lobes;
   THINSLAB_RETURN_IF_ERROR(change_sample("none"));
   THINSLAB_RETURN_IF_ERROR(
-      prober.Measure("the all-dots frame without the sample", all_dots_pattern, true, probe_us, &brightest));
+      prober.Measure("the all-dots frame without the sample", show(all_dots_pattern), true, probe_us, &brightest));
   THINSLAB_RETURN_IF_ERROR(change_sample(sample_state));
   // The glow and the lobes are dim: probed long (64 probe exposures), shortened while they saturate.
   const double long_us = std::min(64 * probe_us, options.max_exposure_us);
-  THINSLAB_RETURN_IF_ERROR(prober.Measure("the display black with the sample", "", false, long_us, &black));
+  THINSLAB_RETURN_IF_ERROR(prober.Measure("the display black with the sample", show(""), false, long_us, &black));
   for (const Eigen::Vector2d& dot : probe_dots) {
     ProbeMeasurement lobe;
     std::ostringstream label;
     label << "dot (" << dot.x() << ", " << dot.y() << ") through the sample";
-    THINSLAB_RETURN_IF_ERROR(prober.Measure(label.str(), DotPatternId(dot.x(), dot.y()), true, long_us, &lobe));
+    THINSLAB_RETURN_IF_ERROR(prober.Measure(label.str(), show(DotPatternId(dot.x(), dot.y())), true, long_us, &lobe));
     // The lobe above the glow the black frame showed.
     lobe.peak_dn_per_us = std::max(0.0, lobe.peak_dn_per_us - black.peak_dn_per_us);
     lobes.push_back(lobe);
   }
   THINSLAB_RETURN_IF_ERROR(projector->ShowPattern(""));
   return PlanExposures(brightest, black, lobes, camera->info(), refresh_period_s, options, plan);
+}
+
+}  // namespace thinslab
+
+namespace thinslab {
+
+bool LaserProbeGeometry::Check(std::string* error) const {
+  std::ostringstream msg;
+  if (!(board_distance_m > 0) || !std::isfinite(board_distance_m)) {
+    msg << "rig.board.distance_m = " << board_distance_m << ": the lobe's ring needs the board's distance (> 0)";
+  } else if (!(outer_angle_deg > 0 && outer_angle_deg < 89)) {
+    msg << "LaserProbeGeometry::outer_angle_deg = " << outer_angle_deg << ": expected in (0, 89)";
+  } else if (!(ring_width_deg > 0 && ring_width_deg < outer_angle_deg)) {
+    msg << "LaserProbeGeometry::ring_width_deg = " << ring_width_deg << ": expected in (0, outer_angle_deg)";
+  } else if (std::abs(laser.direction_in_sample.z()) < 1e-9) {
+    msg << "rig.laser.direction_in_sample: parallel to the board, the beam never meets it";
+  } else if (camera.width_px <= 0 || camera.height_px <= 0 || !(camera.fx_px > 0) || !(camera.fy_px > 0)) {
+    msg << "camera '" << camera.id << "': no intrinsics to find the lobe's ring with";
+  }
+  *error = msg.str();
+  return error->empty();
+}
+
+std::vector<int> LaserRingPixels(const LaserProbeGeometry& geometry) {
+  std::vector<int> pixels;
+  std::string error;
+  if (!geometry.Check(&error)) return pixels;
+  const double d = geometry.board_distance_m;
+  const LaserInfo& laser = geometry.laser;
+  const Eigen::Vector3d spot =
+      laser.origin_in_sample +
+      ((-d - laser.origin_in_sample.z()) / laser.direction_in_sample.z()) * laser.direction_in_sample;
+  const double inner = d * std::tan((geometry.outer_angle_deg - geometry.ring_width_deg) * kPi / 180);
+  const double outer = d * std::tan(geometry.outer_angle_deg * kPi / 180);
+  const Rigid3d sample_from_cam = geometry.camera.cam_from_sample.Inverse();
+  const Eigen::Vector3d centre = sample_from_cam.translation;
+  for (int y = 0; y < geometry.camera.height_px; ++y) {
+    for (int x = 0; x < geometry.camera.width_px; ++x) {
+      const Eigen::Vector3d ray =
+          sample_from_cam.rotation * PixelToCameraRay(geometry.camera, Eigen::Vector2d(x + 0.5, y + 0.5));
+      if (std::abs(ray.z()) < 1e-12) continue;
+      const double s = (-d - centre.z()) / ray.z();
+      if (!(s > 0)) continue;  // The board is behind the camera along this pixel.
+      const double r = ((centre + s * ray) - spot).head<2>().norm();
+      if (r >= inner && r <= outer) pixels.push_back(y * geometry.camera.width_px + x);
+    }
+  }
+  return pixels;
+}
+
+Status ProbeAndPlanLaserExposures(Camera* camera, Laser* laser, Projector* flat_source,
+                                  const SampleChanger& change_sample, const std::string& brightest_state,
+                                  const LaserProbeGeometry& geometry, const ExposurePlanOptions& options,
+                                  ExposurePlan* plan) {
+  std::string error;
+  if (!options.Check(&error) || !geometry.Check(&error)) return Status::Error("exposure probe: " + error);
+  const std::vector<int> ring = LaserRingPixels(geometry);
+  std::ostringstream ring_label;
+  ring_label << "the lobe's ring at " << Num(geometry.outer_angle_deg) << " degrees (" << ring.size()
+             << " pixels, through the sample)";
+  if (ring.size() < 20) {
+    return Status::Error("exposure probe: " + ring_label.str() + " is not in camera '" + geometry.camera.id +
+                         "''s view: check the manifest's camera pose, board distance and beam, or give --exposures-us");
+  }
+  const CameraInfo& info = camera->info();
+  const double range = info.saturation_dn - info.black_level_dn;
+  const double probe_us = options.probe_exposure_us > 0 ? options.probe_exposure_us : 1000;
+  Prober prober(camera, options, 0);
+  auto state = [&](const std::string& sample, bool on) {
+    return [&change_sample, laser, sample, on]() {
+      THINSLAB_RETURN_IF_ERROR(change_sample(sample));
+      return laser->SetEmission(on);
+    };
+  };
+  ProbeMeasurement brightest, black, spot;
+  THINSLAB_RETURN_IF_ERROR(prober.Measure("the laser spot through the " + brightest_state + " sample",
+                                          state(brightest_state, true), true, probe_us, &brightest));
+  // The dark frame (room light, the camera's dark signal), probed long: the glow limit.
+  const double long_us = std::min(64 * probe_us, options.max_exposure_us);
+  THINSLAB_RETURN_IF_ERROR(prober.Measure("the laser off", state("contaminated", false), false, long_us, &black));
+  THINSLAB_RETURN_IF_ERROR(prober.Measure("the laser spot through the contaminated sample", state("contaminated", true),
+                                          true, probe_us, &spot));
+  // The ring: exposures growing from the spot's until its mean, laser on minus laser off at the
+  // same exposure, clears the asked-for standard errors (from its pixels' spread over sqrt(n): no
+  // gain needed) or the cap is reached.
+  ProbeMeasurement tail;
+  tail.label = ring_label.str();
+  auto ring_mean = [&](bool on, double t, double* mean, double* standard_error, double* exposure,
+                       bool* saturated) -> Status {
+    THINSLAB_RETURN_IF_ERROR(state("contaminated", on)().WithContext("exposure probe: " + tail.label));
+    double applied = 0;
+    THINSLAB_RETURN_IF_ERROR(camera->SetExposure(t, &applied).WithContext("exposure probe: " + tail.label));
+    CapturedFrame frame;
+    for (int k = 0; k < options.settle_captures; ++k) {
+      THINSLAB_RETURN_IF_ERROR(camera->Capture(&frame).WithContext("exposure probe: " + tail.label));
+    }
+    *exposure = frame.exposure_time_us > 0 ? frame.exposure_time_us : applied;
+    double sum = 0, sum_sq = 0;
+    for (int i : ring) {
+      const double v = frame.raw_dn.data()[i] - info.black_level_dn;
+      *saturated = *saturated || v >= 0.9 * range;
+      sum += v;
+      sum_sq += v * v;
+    }
+    const double n = static_cast<double>(ring.size());
+    *mean = sum / n;
+    *standard_error = std::sqrt(std::max(sum_sq / n - *mean * *mean, 0.0) / (n - 1));
+    return Status::Ok();
+  };
+  for (double t = std::min(spot.exposure_us * options.max_step_ratio, options.max_exposure_us);;
+       t = std::min(t * options.max_step_ratio, options.max_exposure_us)) {
+    double on = 0, on_error = 0, off = 0, off_error = 0, exposure = 0, off_exposure = 0;
+    bool saturated = false;
+    THINSLAB_RETURN_IF_ERROR(ring_mean(true, t, &on, &on_error, &exposure, &saturated));
+    THINSLAB_RETURN_IF_ERROR(ring_mean(false, t, &off, &off_error, &off_exposure, &saturated));
+    const double signal = on - off, standard_error = std::hypot(on_error, off_error);
+    tail.exposure_us = exposure;
+    tail.peak_dn_per_us = std::max(signal, 0.0) / exposure;
+    tail.saturated = saturated;
+    tail.snr = standard_error > 0 ? std::max(signal, 0.0) / standard_error : (signal > 0 ? options.edge_sigmas : 0);
+    if (saturated || tail.snr >= options.edge_sigmas || t >= options.max_exposure_us) break;
+  }
+  THINSLAB_RETURN_IF_ERROR(laser->SetEmission(false).WithContext("exposure probe"));
+  std::vector<ProbeMeasurement> lobes;
+  if (tail.peak_dn_per_us > 0) lobes.push_back(tail);
+  THINSLAB_RETURN_IF_ERROR(PlanExposures(brightest, black, lobes, info, 0, options, plan));
+  if (lobes.empty()) {
+    plan->why += "; " + tail.label + " showed no light above the laser-off frame within the cap";
+    plan->probes.push_back(tail);
+  }
+  plan->probes.insert(plan->probes.begin() + 2, spot);
+  if (flat_source == nullptr) return Status::Ok();
+  // The flat field lights the whole board for the camera's vignetting: one exposure, its
+  // brightest pixel at peak_fill of the range, whole refresh periods of its source.
+  const double period_us = flat_source->refresh_period_s() * 1e6;
+  Prober flat_prober(camera, options, flat_source->refresh_period_s());
+  ProbeMeasurement flat;
+  double t = 0;
+  THINSLAB_RETURN_IF_ERROR(ProbeFillExposure(
+      &flat_prober, "the flat field without the sample",
+      [&]() {
+        THINSLAB_RETURN_IF_ERROR(change_sample("none"));
+        return flat_source->ShowPattern("flat");
+      },
+      period_us > 0 ? 16 * period_us : probe_us, "the flat-field source", range, period_us, options, &flat, &t));
+  THINSLAB_RETURN_IF_ERROR(flat_source->ShowPattern("").WithContext("exposure probe"));
+  plan->flat_exposures_us = {t};
+  plan->why += "; flat field " + DurationText(t) + ": it peaks at " + Num(flat.peak_dn_per_us) + " DN/us, " +
+               Num(100 * flat.peak_dn_per_us * t / range) + " % of the range there";
+  plan->probes.push_back(flat);
+  return Status::Ok();
+}
+
+Status ProbeAndPlanShadowMapExposure(Camera* camera, Projector* projector, const SampleChanger& change_sample,
+                                     const ExposurePlanOptions& options, ExposurePlan* plan) {
+  *plan = ExposurePlan();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error("exposure probe: " + error);
+  const double period_us = projector->refresh_period_s() * 1e6;
+  const double probe_us = options.probe_exposure_us > 0 ? options.probe_exposure_us : period_us > 0 ? period_us : 1000;
+  const CameraInfo& info = camera->info();
+  const double range = info.saturation_dn - info.black_level_dn;
+  Prober prober(camera, options, projector->refresh_period_s());
+  auto state = [&](const std::string& pattern) {
+    return [&change_sample, projector, pattern]() {
+      THINSLAB_RETURN_IF_ERROR(change_sample("clean"));
+      return projector->ShowPattern(pattern);
+    };
+  };
+  ProbeMeasurement reference, dark;
+  double t = 0;
+  THINSLAB_RETURN_IF_ERROR(ProbeFillExposure(&prober, "the flat field through clean glass", state("flat"), probe_us,
+                                             "the projector", range, period_us, options, &reference, &t));
+  THINSLAB_RETURN_IF_ERROR(prober.Measure("the projector off", state(""), false, t, &dark));
+  std::ostringstream why;
+  why << "exposure " << DurationText(t) << ": " << reference.label << " peaks at " << Num(reference.peak_dn_per_us)
+      << " DN/us" << (reference.saturated ? " (at least: saturated in the shortest probe)" : "") << ", "
+      << Num(100 * reference.peak_dn_per_us * t / range) << " % of the range there";
+  const double dark_fill = dark.peak_dn_per_us * t / range;
+  if (dark_fill > options.max_dark_fraction) {
+    why << "; the projector-off frame already fills " << Num(100 * dark_fill) << " % of the range: darken the room";
+  }
+  plan->exposures_us = {t};
+  plan->probes = {reference, dark};
+  plan->why = why.str();
+  return Status::Ok();
 }
 
 }  // namespace thinslab

@@ -16,6 +16,10 @@
 //  - neighbouring exposures are at most max_step_ratio apart (a pixel that saturates in one
 //    is above 1/max_step_ratio of the range in the next shorter),
 // all whole refresh periods of the display.
+//
+// The laser lobe's plan (ProbeAndPlanLaserExposures) probes the brightest state (the beam spot
+// through clean glass), the darkest (laser off) and the lobe's ring at the fit's outermost angle,
+// whose mean over its pixels is the signal of interest.
 #pragma once
 
 #include <string>
@@ -26,6 +30,7 @@
 #include "thinslab/core/status.h"
 #include "thinslab/drivers/camera.h"
 #include "thinslab/drivers/display.h"
+#include "thinslab/drivers/laser.h"
 
 namespace thinslab {
 
@@ -53,17 +58,26 @@ struct ProbeMeasurement {
   double exposure_us = 0;     // The probe frame's exposure (unsaturated, or the shortest tried).
   double peak_dn_per_us = 0;  // Brightest pixel (bright states) or 99th percentile (black).
   bool saturated = false;     // Even the shortest probe exposure saturated: a lower bound.
+  // > 0: the signal of interest is the measured level itself (a mean over pixels, e.g. a lobe's
+  // ring), with this signal to noise at exposure_us, measured from the pixels' spread. The plan
+  // scales it as sqrt(exposure) (shot noise; conservative where read noise dominates), so it
+  // needs no gain. 0: the signal is edge_fraction of the peak, with the camera's noise model.
+  double snr = 0;
 };
 
 struct ExposurePlan {
   std::vector<double> exposures_us;  // Ascending, whole refresh periods.
   std::vector<ProbeMeasurement> probes;
   std::string why;  // One paragraph: which state set which end and by how much.
+  // The laser plan with a flat-field source: the flat's own exposure (its brightest pixel at
+  // peak_fill of the range, whole refresh periods); empty otherwise.
+  std::vector<double> flat_exposures_us;
 };
 
 // Chooses the bracket from measured probes (pure; tested without devices). `brightest`: the
-// brightest state; `black`: the darkest (may have peak 0); `lobes`: dots through the sample
-// (may be empty: then the longest is the glow limit or the cap). `camera`: saturation, black
+// brightest state; `black`: the darkest (may have peak 0); `lobes`: the signals of interest,
+// dots through the sample or a lobe's ring (may be empty: then the longest is the glow limit or
+// the cap). `camera`: saturation, black
 // level and gain (1 e-/DN when unknown) of the frames.
 Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& black,
                      const std::vector<ProbeMeasurement>& lobes, const CameraInfo& camera, double refresh_period_s,
@@ -76,5 +90,39 @@ Status ProbeAndPlanDotScanExposures(Camera* camera, Projector* projector, const 
                                     const std::string& all_dots_pattern, const std::vector<Eigen::Vector2d>& probe_dots,
                                     const std::string& sample_state, double refresh_period_s,
                                     const ExposurePlanOptions& options, ExposurePlan* plan);
+
+// Where the laser session's signal of interest lies: the lobe's ring at the fit's outermost
+// angle on the board (Gu et al. 2007, Sec. 5.2, Fig. 9b).
+struct LaserProbeGeometry {
+  CameraInfo camera;  // Intrinsics and cam_from_sample (the manifest's camera).
+  LaserInfo laser;    // The beam (origin and direction in the sample frame).
+  double board_distance_m = 0;
+  double outer_angle_deg = 60;  // The fit's outermost ring (PhaseFitOptions' largest candidate).
+  double ring_width_deg = 2.5;  // The ring's pixels: angles in [outer - width, outer].
+  bool Check(std::string* error) const;
+};
+
+// The camera pixels (row-major indices) of the ring: board points at scattering angles in
+// [outer - width, outer] around where the beam meets the board. Empty when none is in view.
+std::vector<int> LaserRingPixels(const LaserProbeGeometry& geometry);
+
+// The probe on the devices: the laser on through `brightest_state` (clean glass when the session
+// captures it: the unattenuated spot), the laser off with the contaminated sample, and the laser
+// on through it at exposures growing max_step_ratio-fold from the spot's unsaturated one until
+// the ring's mean clears edge_sigmas standard errors or the cap is reached; then PlanExposures.
+// With a `flat_source` (nullptr: none), its flat field without the sample sets
+// plan->flat_exposures_us. Leaves the laser off and the flat source dark. Errors name the device.
+Status ProbeAndPlanLaserExposures(Camera* camera, Laser* laser, Projector* flat_source,
+                                  const SampleChanger& change_sample, const std::string& brightest_state,
+                                  const LaserProbeGeometry& geometry, const ExposurePlanOptions& options,
+                                  ExposurePlan* plan);
+
+// The shadow-map session's one exposure (Gu et al. 2007, Sec. 5.1): its brightest state, the
+// flat field through clean glass, at `options.peak_fill` of the range in its brightest pixel
+// (whole refresh periods of the projector, within min..max_exposure_us); the projector-off
+// frame's glow (99th percentile) is reported in the reasons when it fills more than
+// max_dark_fraction. Leaves the projector dark. Errors name the device.
+Status ProbeAndPlanShadowMapExposure(Camera* camera, Projector* projector, const SampleChanger& change_sample,
+                                     const ExposurePlanOptions& options, ExposurePlan* plan);
 
 }  // namespace thinslab

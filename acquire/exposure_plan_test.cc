@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 
 #include "thinslab/core/math.h"
@@ -94,6 +95,66 @@ TEST(ExposurePlan, TheCapAndASingleExposure) {
                   .ok());
   ASSERT_EQ(plan.exposures_us.size(), 1u);
   EXPECT_NEAR(plan.exposures_us.front(), 10 * kPeriodUs, 1e-6);
+}
+
+// A lobe's ring (a mean over many pixels) brings its own measured signal to noise: the longest
+// exposure is where it reaches edge_sigmas as sqrt(t) grows it, with no gain needed.
+TEST(ExposurePlan, AMeasuredRingSignalToNoiseScalesAsTheSquareRootOfTheExposure) {
+  const double range = 4095 - 64;
+  ExposurePlanOptions options;
+  ProbeMeasurement ring = Probe("the lobe's ring at 60 degrees", 1e-3);
+  ring.exposure_us = 1000;
+  ring.snr = 2.5;
+  ExposurePlan plan;
+  CameraInfo camera = Camera12Bit();
+  camera.gain_e_per_dn = 0;  // Unknown: the ring's path does not use it.
+  ASSERT_TRUE(
+      PlanExposures(Probe("spot", 0.5 * range / 20), Probe("laser off", 0), {ring}, camera, 0, options, &plan).ok());
+  EXPECT_NEAR(plan.exposures_us.front(), 20, 1e-9);
+  EXPECT_NEAR(plan.exposures_us.back(), 1000 * Sqr(options.edge_sigmas / 2.5), 1e-6);
+  EXPECT_NE(plan.why.find("the lobe's ring at 60 degrees at 10 standard errors"), std::string::npos) << plan.why;
+  // Beyond the cap: the cap, and what the ring would have needed.
+  options.max_exposure_us = 4000;
+  ASSERT_TRUE(
+      PlanExposures(Probe("spot", 0.5 * range / 20), Probe("laser off", 0), {ring}, camera, 0, options, &plan).ok());
+  EXPECT_NEAR(plan.exposures_us.back(), 4000, 1e-9);
+  EXPECT_NE(plan.why.find("would need 16 ms"), std::string::npos) << plan.why;
+}
+
+// The ring's pixels seen by a camera straight above the beam: all at the ring's angles on the
+// board, none elsewhere, and none when the ring lies outside the view.
+TEST(ExposurePlan, TheLaserRingPixelsLieAtTheOuterAngleOnTheBoard) {
+  LaserProbeGeometry geometry;
+  CameraInfo& camera = geometry.camera;
+  camera.id = "cam0";
+  camera.width_px = camera.height_px = 200;
+  camera.fx_px = camera.fy_px = 200;
+  camera.cx_px = camera.cy_px = 100;
+  // The camera 80 mm above the sample plane, looking down (-z): x_cam = x, y_cam = -y, z_cam = h - z.
+  camera.cam_from_sample.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(kPi, Eigen::Vector3d::UnitX()));
+  camera.cam_from_sample.translation = Eigen::Vector3d(0, 0, 0.08);
+  geometry.laser.present = true;
+  geometry.laser.origin_in_sample = Eigen::Vector3d(0, 0, 0.5);
+  geometry.board_distance_m = 0.02;
+  geometry.outer_angle_deg = 45;
+  const std::vector<int> ring = LaserRingPixels(geometry);
+  ASSERT_GT(ring.size(), 100u);
+  const double inner = 0.02 * std::tan((45 - 2.5) * kPi / 180), outer = 0.02;
+  for (int i : ring) {
+    // The pixel centre's board point: radius = (pixel offset / f) * (camera height + D).
+    const double px = (i % 200) + 0.5 - 100.5, py = (i / 200) + 0.5 - 100.5;
+    const double r = std::hypot(px, py) / 200 * 0.1;
+    EXPECT_GE(r, inner - 1e-12);
+    EXPECT_LE(r, outer + 1e-12);
+  }
+  // A ring wider than the view: no pixel.
+  geometry.outer_angle_deg = 85;
+  geometry.ring_width_deg = 1;
+  EXPECT_TRUE(LaserRingPixels(geometry).empty());
+  std::string error;
+  geometry.board_distance_m = 0;
+  EXPECT_FALSE(geometry.Check(&error));
+  EXPECT_NE(error.find("rig.board.distance_m"), std::string::npos) << error;
 }
 
 TEST(ExposurePlan, NothingLitOrBadOptionsAreErrors) {

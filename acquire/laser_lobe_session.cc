@@ -17,6 +17,13 @@ bool LaserLobeSessionOptions::Check(std::string* error) const {
   } else if (!sync.Check(error)) {
     msg << "LaserLobeSessionOptions::sync: " << *error;
   } else {
+    for (double t : flat_exposure_times_us) {
+      if (!(t > 0)) {
+        msg << "LaserLobeSessionOptions::flat_exposure_times_us contains " << t << ". Violated constraint: > 0";
+        *error = msg.str();
+        return false;
+      }
+    }
     for (double t : exposure_times_us) {
       if (!(t > 0)) {
         msg << "LaserLobeSessionOptions::exposure_times_us contains " << t << ". Violated constraint: > 0";
@@ -46,7 +53,8 @@ std::vector<PlannedFrame> PlanLaserLobeSession(const LaserLobeSessionOptions& op
   if (options.capture_validation) steps.push_back({"laser", "contaminated", true, "", true});
   if (options.capture_clean) steps.push_back({"laser", "clean", true, "", false});
   ExposureBracketOptions flat_bracket;
-  flat_bracket.exposures_us = options.exposure_times_us;
+  flat_bracket.exposures_us =
+      options.flat_exposure_times_us.empty() ? options.exposure_times_us : options.flat_exposure_times_us;
   flat_bracket.refresh_period_s = refresh_period_s;
   const std::vector<double> flat_exposures = PlanExposureBracket(flat_bracket);
   std::vector<PlannedFrame> plan;

@@ -26,6 +26,9 @@ namespace thinslab {
 struct LaserLobeSessionOptions {
   // Requested exposures of the bracket; the applied (read-back) ones are recorded.
   std::vector<double> exposure_times_us = {20, 200, 2000, 20000, 200000, 2000000};
+  // The flat-field bracket's, when its light is planned apart (`--exposures-us auto`); empty:
+  // the laser bracket's.
+  std::vector<double> flat_exposure_times_us;
   int frames_per_exposure = 1;
   bool capture_clean = true;  // Clean-glass bracket for background subtraction and checks.
   bool capture_flat = true;   // Flat-field bracket of the board (projector "flat").

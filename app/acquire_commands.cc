@@ -16,21 +16,22 @@
 #include <csignal>
 #include <cstring>
 #include <iomanip>
-#include <thread>
 #include <iostream>
 #include <memory>
 #include <sstream>
+#include <thread>
 
 #include "thinslab/acquire/display_gamma_session.h"
 #include "thinslab/acquire/dot_scan_session.h"
 #include "thinslab/acquire/exposure_plan.h"
-#include "thinslab/acquire/live_preview.h"
 #include "thinslab/acquire/laser_lobe_session.h"
+#include "thinslab/acquire/live_preview.h"
 #include "thinslab/acquire/session_journal.h"
 #include "thinslab/acquire/shadow_map_session.h"
 #include "thinslab/app/commands.h"
-#include "thinslab/app/subcommands.h"
 #include "thinslab/app/option_parser.h"
+#include "thinslab/app/subcommands.h"
+#include "thinslab/calib/session_calibration.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/output_guard.h"
 #include "thinslab/core/session_io.h"
@@ -460,6 +461,130 @@ Status CheckSimExposureStep(const SimSensorOptions& sensor) {
                        ": expected a step > 0 us");
 }
 
+constexpr char kPlannedExposuresKey[] = "; planned-exposures-us = ";
+constexpr char kPlannedFlatExposuresKey[] = "; planned-flat-exposures-us = ";
+
+// `--exposures-us auto` (issue #28, item 2): the bracket from a probe of the rig
+// (acquire/exposure_plan.h), appended to the plan text (session.json acquisition.plan) with the
+// reasons. A resume takes the exposures and reasons of the run it continues, without probing.
+// `flat_exposures_us` (laser sessions; nullptr: none) receives the flat field's planned exposure.
+Status PlanBracketFromProbe(const CommonOptions& common, const std::function<Status(ExposurePlan*)>& probe,
+                            std::vector<double>* exposures_us, std::vector<double>* flat_exposures_us,
+                            std::string* plan) {
+  std::string planned;
+  if (common.resume && FileExists(JoinPath(common.out, kSessionManifestName))) {
+    Session previous;
+    THINSLAB_RETURN_IF_ERROR(ReadSessionWithJournal(common.out, &previous));
+    const size_t at = previous.acquisition.plan.find(kPlannedExposuresKey);
+    if (at == std::string::npos) {
+      return Status::Error(common.out + ": the session to resume was not planned with --exposures-us auto");
+    }
+    planned = previous.acquisition.plan.substr(at);
+    auto read_list = [&planned](const std::string& key, std::vector<double>* values) -> Status {
+      const size_t from = planned.find(key);
+      if (from == std::string::npos) return Status::Ok();
+      const size_t list = from + key.size(), end = planned.find(';', list);
+      return ParseExposureList(planned.substr(list, end - list), key.substr(2, key.size() - 5), values);
+    };
+    THINSLAB_RETURN_IF_ERROR(read_list(kPlannedExposuresKey, exposures_us));
+    if (flat_exposures_us != nullptr) THINSLAB_RETURN_IF_ERROR(read_list(kPlannedFlatExposuresKey, flat_exposures_us));
+  } else {
+    ExposurePlan result;
+    THINSLAB_RETURN_IF_ERROR(probe(&result));
+    *exposures_us = result.exposures_us;
+    auto list = [](const std::vector<double>& values) {
+      std::ostringstream text;
+      text << std::setprecision(10);
+      for (size_t k = 0; k < values.size(); ++k) text << (k ? "," : "") << values[k];
+      return text.str();
+    };
+    std::string why = result.why;
+    std::replace(why.begin(), why.end(), ';', ',');  // The plan text separates its fields by ';'.
+    planned = kPlannedExposuresKey + list(result.exposures_us);
+    if (flat_exposures_us != nullptr && !result.flat_exposures_us.empty()) {
+      *flat_exposures_us = result.flat_exposures_us;
+      planned += kPlannedFlatExposuresKey + list(result.flat_exposures_us);
+    }
+    planned += "; exposure-plan = " + why;
+  }
+  *plan += planned;
+  std::cout << "exposure plan:" << planned.substr(1) << "\n";
+  return Status::Ok();
+}
+
+Status PlanDotScanBracket(const CommonOptions& common, DotScanSessionOptions& dots, Camera* camera,
+                          Projector* projector, const SampleChanger& change, double refresh_period_s,
+                          std::string* plan) {
+  return PlanBracketFromProbe(
+      common,
+      [&](ExposurePlan* result) {
+        ExposurePlanOptions options;
+        options.max_exposure_us = dots.bracket.max_exposure_us;
+        options.min_exposure_us = dots.bracket.min_exposure_us;
+        // Probe dots: the grid's centre and the centres of its four quadrants.
+        const std::vector<Eigen::Vector2d> grid = DotScanGrid(dots);
+        std::vector<Eigen::Vector2d> probe;
+        for (const auto& [fx, fy] : std::vector<std::pair<double, double>>{
+                 {0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75}, {0.75, 0.75}}) {
+          const int i = static_cast<int>(std::lround(fx * (dots.grid_nx - 1)));
+          const int j = static_cast<int>(std::lround(fy * (dots.grid_ny - 1)));
+          probe.push_back(grid.at(static_cast<size_t>(j * dots.grid_nx + i)));
+        }
+        return ProbeAndPlanDotScanExposures(camera, projector, change, DotScanGridPattern(dots), probe,
+                                            dots.sample_state, refresh_period_s, options, result);
+      },
+      &dots.bracket.exposures_us, nullptr, plan);
+}
+
+// The laser bracket from a probe: the spot through clean glass (or the sample) sets the
+// shortest, the lobe's ring at the fit's outermost angle the longest. The ring is found through
+// the camera's pose: the simulated rig's, or a calibrated capture's (`--plan-rig`).
+struct LaserPlanText {
+  double max_exposure_us = 1e7;
+  double outer_angle_deg = 60;
+  std::string rig_capture;
+};
+
+Status PlanLaserBracket(const CommonOptions& common, const LaserPlanText& text, const RigInfo& rig,
+                        LaserLobeSessionOptions& session, Camera* camera, Laser* laser, Projector* flat_source,
+                        const SampleChanger& change, std::string* plan) {
+  return PlanBracketFromProbe(
+      common,
+      [&](ExposurePlan* result) {
+        LaserProbeGeometry geometry;
+        RigInfo from = rig;
+        if (!text.rig_capture.empty()) {
+          Session capture;
+          THINSLAB_RETURN_IF_ERROR(ReadSessionWithJournal(text.rig_capture, &capture).WithContext("option --plan-rig"));
+          from = capture.rig;
+          if (from.cameras.empty()) return Status::Error("option --plan-rig: " + text.rig_capture + " has no camera");
+          // Its calib/rig.json (intrinsics, pose) where it has one.
+          SessionCalibration calibration;
+          THINSLAB_RETURN_IF_ERROR(
+              LoadSessionCalibration(text.rig_capture, SessionCalibrationOptions(), &from.cameras[0], &calibration)
+                  .WithContext("option --plan-rig"));
+        } else if (common.camera != "sim") {
+          return Status::Error(
+              "thinslab acquire laser: --exposures-us auto finds the lobe's ring through the camera's "
+              "pose: give --plan-rig CAPTURE (a calibrated capture of this rig, `thinslab calib pose`)");
+        }
+        if (from.cameras.empty() || !from.board.present || !from.laser.present) {
+          return Status::Error(
+              "thinslab acquire laser: --exposures-us auto: the rig has no camera, board or laser to "
+              "find the lobe's ring with");
+        }
+        geometry.camera = from.cameras[0];
+        geometry.laser = from.laser;
+        geometry.board_distance_m = from.board.distance_m;
+        geometry.outer_angle_deg = text.outer_angle_deg;
+        ExposurePlanOptions options;
+        options.max_exposure_us = text.max_exposure_us;
+        return ProbeAndPlanLaserExposures(camera, laser, session.capture_flat ? flat_source : nullptr, change,
+                                          session.capture_clean ? "clean" : "contaminated", geometry, options, result);
+      },
+      &session.exposure_times_us, &session.flat_exposure_times_us, plan);
+}
+
 int AcquireShadowMaps(int argc, char** argv, bool sim) {
   CommonOptions common;
   SyntheticShadowSessionOptions simulated;  // Rig options (sim) and the session script's options.
@@ -477,17 +602,47 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
     parser.AddInt("validation-frames", &session.validation_frames,
                   "further shadow frames marked validation (not fitted; fit tau reports how well it predicts them)");
   }
-  parser.AddDouble("exposure-us", &session.exposure_time_us, "exposure [us]");
-  AddSyncOptions(&parser, &session.sync);
+  std::string exposure = "20000";
+  parser.AddString(
+      "exposure-us", &exposure,
+      "exposure [us]; auto = planned from a probe: the flat field through clean glass at 80 % of the range "
+      "in its brightest pixel");
+  double max_exposure_us = 1e7;
+  parser.AddDouble("max-exposure-us", &max_exposure_us, "--exposure-us auto: longest exposure allowed [us]");
   int exit_code = 0;
   if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   Status status = CheckSimExposureStep(simulated.rig.sensor);
+  const bool plan_exposure = exposure == "auto";
+  if (status.ok() && !plan_exposure) {
+    std::vector<double> one;
+    status = ParseExposureList(exposure, "exposure-us", &one);
+    if (status.ok() && one.size() != 1) {
+      status = Status::Error("thinslab acquire shadow-maps: option --exposure-us = '" + exposure +
+                             "': expected one exposure [us] or auto");
+    }
+    if (status.ok()) session.exposure_time_us = one[0];
+  }
   if (!status.ok()) return CommandFailed(status);
   session.sync.max_retries = common.max_retries;
   std::string error;
   if (!session.Check(&error)) return CommandFailed(Status::Error(error));
-  const std::string plan = PlanText("shadow-maps", parser.ToIni());
+  std::string plan = PlanText("shadow-maps", parser.ToIni());
   const int planned = static_cast<int>(PlanShadowMapSession(session).size());
+  auto plan_shadow_exposure = [&](Camera* camera, Projector* projector, const SampleChanger& change) {
+    std::vector<double> planned_exposure;
+    const Status planned_status = PlanBracketFromProbe(
+        common,
+        [&](ExposurePlan* result) {
+          ExposurePlanOptions options;
+          options.peak_fill = 0.8;          // One exposure, no bracket: as much signal as the range allows.
+          options.max_dark_fraction = 0.2;  // A projector-off frame above this is worth a warning.
+          options.max_exposure_us = max_exposure_us;
+          return ProbeAndPlanShadowMapExposure(camera, projector, change, options, result);
+        },
+        &planned_exposure, nullptr, &plan);
+    if (planned_status.ok()) session.exposure_time_us = planned_exposure.at(0);
+    return planned_status;
+  };
 
   RealDevices devices;
   status = OpenRealDevices(common, &devices);
@@ -495,6 +650,7 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
   DeviceFailureTracker tracker;
   if (sim) {
     simulated.rig.board_distance_m = board_distance_mm * 1e-3;
+    // The simulated light: reference_fill at this exposure (the default's with auto).
     simulated.rig.exposure_time_us = session.exposure_time_us;
     Image tau;
     status = LoadOrGenerateTau(tau_path, simulated.rig.seed, &tau);
@@ -506,6 +662,10 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
     TrackedProjector projector(devices.window ? static_cast<Projector*>(&tee) : rig->projector(),
                                devices.window ? devices.display_name : "projector (sim)", &tracker);
     const SampleChanger change = rig->sample_changer();
+    if (plan_exposure) {
+      status = plan_shadow_exposure(rig->camera(), &projector, change);
+      if (!status.ok()) return CommandFailed(status);
+    }
     return Finish("shadow-maps", common, plan, planned, MakeHeader(simulated.name, "shadow_map", rig->rig_info(), true),
                   rig->camera(), "sim",
                   [&](Camera* camera, SessionWriter* writer) {
@@ -522,6 +682,10 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
   rig.projector.present = true;
   TrackedProjector projector(devices.window.get(), devices.display_name, &tracker);
   const SampleChanger change = OperatorSampleChanger();
+  if (plan_exposure) {
+    status = plan_shadow_exposure(devices.camera.get(), &projector, change);
+    if (!status.ok()) return CommandFailed(status);
+  }
   return Finish("shadow-maps", common, plan, planned,
                 MakeHeader(common.name.empty() ? "shadow_map" : common.name, "shadow_map", rig, false),
                 devices.camera.get(), common.camera,
@@ -554,7 +718,24 @@ int AcquireLaser(int argc, char** argv, bool sim) {
     parser.AddUint64("seed", &simulated.seed, "seed of every random choice");
     AddSimExposureStepOption(&parser, &simulated.sensor);
   }
-  parser.AddString("exposures-us", &exposures, "bracket exposures, comma-separated (default 20,200,...,2000000)");
+  parser.AddString(
+      "exposures-us", &exposures,
+      "bracket exposures, comma-separated (default 20,200,...,2000000); auto = planned from a probe: the "
+      "spot unsaturated in the shortest, the lobe's ring at --plan-outer-angle-deg measured in the longest");
+  LaserPlanText laser_plan;
+  parser.AddDouble("max-exposure-us", &laser_plan.max_exposure_us,
+                   "--exposures-us auto: longest exposure allowed [us]");
+  parser.AddDouble("plan-outer-angle-deg", &laser_plan.outer_angle_deg,
+                   "--exposures-us auto: the fit's outermost ring, measured in the longest exposure [deg]");
+  parser.AddString(
+      "plan-rig", &laser_plan.rig_capture,
+      "--exposures-us auto with a real camera: a calibrated capture of this rig (camera pose, board, beam)");
+  double sim_laser_power = 0;
+  if (sim) {
+    parser.AddDouble("sim-laser-power", &sim_laser_power,
+                     "simulated laser power: 1 = the spot fills half the range in 20 us; 0 = in the bracket's shortest "
+                     "exposure (20 us with --exposures-us auto)");
+  }
   parser.AddInt("frames-per-exposure", &session.frames_per_exposure, "frames per bracket exposure");
   parser.AddBool("capture-clean", &session.capture_clean, "also capture the clean glass");
   parser.AddBool("capture-flat", &session.capture_flat, "also capture the board flat field");
@@ -564,13 +745,20 @@ int AcquireLaser(int argc, char** argv, bool sim) {
   int exit_code = 0;
   if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   Status status;
-  if (status.ok() && !exposures.empty()) status = ParseExposureList(exposures, "exposures-us", &session.exposure_times_us);
+  const bool plan_exposures = exposures == "auto";
+  if (status.ok() && !exposures.empty() && !plan_exposures) {
+    status = ParseExposureList(exposures, "exposures-us", &session.exposure_times_us);
+  }
   if (status.ok()) status = CheckSimExposureStep(simulated.sensor);
+  if (status.ok() && !(sim_laser_power >= 0 && std::isfinite(sim_laser_power))) {
+    status = Status::Error("thinslab acquire laser: option --sim-laser-power = " + std::to_string(sim_laser_power) +
+                           ": expected >= 0");
+  }
   if (!status.ok()) return CommandFailed(status);
   session.sync.max_retries = common.max_retries;
   std::string error;
   if (!session.Check(&error)) return CommandFailed(Status::Error(error));
-  const std::string plan = PlanText("laser", parser.ToIni());
+  std::string plan = PlanText("laser", parser.ToIni());
 
   RealDevices devices;
   status = OpenRealDevices(common, &devices);
@@ -580,7 +768,9 @@ int AcquireLaser(int argc, char** argv, bool sim) {
     simulated.board_distance_m = distance_mm * 1e-3;
     simulated.beam_radius_m = beam_radius_mm * 1e-3;
     simulated.shortest_exposure_us =
-        *std::min_element(session.exposure_times_us.begin(), session.exposure_times_us.end());
+        sim_laser_power > 0 ? 20 / sim_laser_power
+        : plan_exposures    ? 20
+                            : *std::min_element(session.exposure_times_us.begin(), session.exposure_times_us.end());
     std::unique_ptr<SimLaserLobeRig> rig;
     status = SimLaserLobeRig::Create(simulated, &rig);
     if (!status.ok()) return CommandFailed(status);
@@ -592,6 +782,11 @@ int AcquireLaser(int argc, char** argv, bool sim) {
     TrackedLaser laser(devices.laser ? static_cast<Laser*>(&tee_laser) : rig->laser(),
                        devices.laser ? devices.laser_name : "laser (sim)", &tracker);
     const SampleChanger change = rig->sample_changer();
+    if (plan_exposures) {
+      status =
+          PlanLaserBracket(common, laser_plan, rig->rig_info(), session, rig->camera(), &laser, &flat, change, &plan);
+      if (!status.ok()) return CommandFailed(status);
+    }
     const int planned = static_cast<int>(PlanLaserLobeSession(session, flat.refresh_period_s()).size());
     return Finish("laser", common, plan, planned, MakeHeader(name, "laser_lobe", rig->rig_info(), true), rig->camera(),
                   "sim",
@@ -625,6 +820,10 @@ int AcquireLaser(int argc, char** argv, bool sim) {
                         devices.window ? devices.display_name : "flat-field source", &tracker);
   TrackedLaser laser(devices.laser.get(), devices.laser_name, &tracker);
   const SampleChanger change = OperatorSampleChanger();
+  if (plan_exposures) {
+    status = PlanLaserBracket(common, laser_plan, rig, session, devices.camera.get(), &laser, &flat, change, &plan);
+    if (!status.ok()) return CommandFailed(status);
+  }
   const int planned = static_cast<int>(PlanLaserLobeSession(session, flat.refresh_period_s()).size());
   return Finish("laser", common, plan, planned, MakeHeader(common.name.empty() ? "laser_lobe" : common.name,
                                                            "laser_lobe", rig, false),
@@ -694,54 +893,6 @@ Status ApplySimDisplay(const SimDisplayText& display, SimDotMonitorOptions* moni
 }
 
 enum class DisplayKind { kDotScan, kBracket, kGamma };
-
-constexpr char kPlannedExposuresKey[] = "; planned-exposures-us = ";
-
-// `--exposures-us auto` (issue #28, item 2): the bracket from a probe of the rig
-// (acquire/exposure_plan.h), appended to the plan text (session.json acquisition.plan) with the
-// reasons. A resume takes the exposures and reasons of the run it continues, without probing.
-Status PlanDotScanBracket(const CommonOptions& common, DotScanSessionOptions& dots, Camera* camera,
-                          Projector* projector, const SampleChanger& change, double refresh_period_s,
-                          std::string* plan) {
-  std::string planned;
-  if (common.resume && FileExists(JoinPath(common.out, kSessionManifestName))) {
-    Session previous;
-    THINSLAB_RETURN_IF_ERROR(ReadSessionWithJournal(common.out, &previous));
-    const size_t at = previous.acquisition.plan.find(kPlannedExposuresKey);
-    if (at == std::string::npos) {
-      return Status::Error(common.out + ": the session to resume was not planned with --exposures-us auto");
-    }
-    planned = previous.acquisition.plan.substr(at);
-    const size_t list = strlen(kPlannedExposuresKey), end = planned.find(';', list);
-    THINSLAB_RETURN_IF_ERROR(ParseExposureList(planned.substr(list, end - list), "planned-exposures-us",
-                                               &dots.bracket.exposures_us));
-  } else {
-    ExposurePlanOptions options;
-    options.max_exposure_us = dots.bracket.max_exposure_us;
-    options.min_exposure_us = dots.bracket.min_exposure_us;
-    // Probe dots: the grid's centre and the centres of its four quadrants.
-    const std::vector<Eigen::Vector2d> grid = DotScanGrid(dots);
-    std::vector<Eigen::Vector2d> probe;
-    for (const auto& [fx, fy] : std::vector<std::pair<double, double>>{{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75}, {0.75, 0.75}}) {
-      const int i = static_cast<int>(std::lround(fx * (dots.grid_nx - 1)));
-      const int j = static_cast<int>(std::lround(fy * (dots.grid_ny - 1)));
-      probe.push_back(grid.at(static_cast<size_t>(j * dots.grid_nx + i)));
-    }
-    ExposurePlan result;
-    THINSLAB_RETURN_IF_ERROR(ProbeAndPlanDotScanExposures(camera, projector, change, DotScanGridPattern(dots), probe,
-                                                          dots.sample_state, refresh_period_s, options, &result));
-    dots.bracket.exposures_us = result.exposures_us;
-    std::ostringstream list;
-    list << std::setprecision(10);
-    for (size_t k = 0; k < result.exposures_us.size(); ++k) list << (k ? "," : "") << result.exposures_us[k];
-    std::string why = result.why;
-    std::replace(why.begin(), why.end(), ';', ',');  // The plan text separates its fields by ';'.
-    planned = kPlannedExposuresKey + list.str() + "; exposure-plan = " + why;
-  }
-  *plan += planned;
-  std::cout << "exposure plan:" << planned.substr(1) << "\n";
-  return Status::Ok();
-}
 
 // dot-scan, bracket and gamma: display-driven, synchronised sessions.
 int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {

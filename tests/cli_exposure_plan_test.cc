@@ -6,6 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
 
 #include "tests/testing/run_thinslab.h"
 #include "tests/testing/temp_dir.h"
@@ -59,6 +62,82 @@ TEST(CliExposurePlan, TheProbesPlanIsInTheManifestAndKeepsTheBrightestStateUnsat
   r = RunThinslab(std::string(kScan) + "--exposures-us auto --resume " + dir / "fixed");
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_TRUE(Has(r.output, "not planned with --exposures-us auto")) << r.output;
+}
+
+// `acquire laser --exposures-us auto`: a laser 30x brighter than the one the fixed bracket was
+// made for saturates its spot in the fixed bracket's shortest exposure; the planned bracket
+// keeps it unsaturated, measures the lobe's ring at 60 degrees in its longest, plans the flat
+// field apart, and fits g (true 0.8) within the fit's own error bar. A resume takes the plan.
+TEST(CliExposurePlan, TheLaserPlanKeepsTheSpotUnsaturatedAndMeasuresTheRing) {
+  TempDir dir;
+  const std::string laser =
+      "acquire laser --quiet --camera sim --camera-width-px 200 --camera-height-px 150 --sim-laser-power 30 ";
+  RunResult r = RunThinslab(laser + dir / "fixed");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(Has(r.output, "retake [saturation]: 'laser, clean'")) << r.output;
+
+  r = RunThinslab(laser + "--exposures-us auto " + dir / "planned");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_FALSE(Has(r.output, "[saturation]")) << r.output;
+  EXPECT_TRUE(Has(r.output, "verdict: good")) << r.output;
+  Session session;
+  ASSERT_TRUE(ReadSession(dir / "planned", &session).ok());
+  const std::string& plan = session.acquisition.plan;
+  EXPECT_TRUE(Has(plan, "planned-exposures-us = ")) << plan;
+  EXPECT_TRUE(Has(plan, "planned-flat-exposures-us = ")) << plan;
+  EXPECT_TRUE(Has(plan, "the lobe's ring at 60 degrees")) << plan;
+  std::set<double> laser_exposures, flat_exposures;
+  for (const FrameRecord& f : session.frames)
+    (f.kind == "flat" ? flat_exposures : laser_exposures).insert(f.exposure_time_us);
+  ASSERT_GE(laser_exposures.size(), 2u);
+  EXPECT_LT(*laser_exposures.begin(), 20);  // Shorter than the fixed bracket's 20 us.
+  EXPECT_EQ(flat_exposures.size(), 1u);
+
+  r = RunThinslab("fit phase --quiet " + dir / "planned");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(fs::path(dir / "planned") / "fit" / "phase" / "summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(in);
+  const double g = summary.at("g"), sigma_g = summary.at("sigma_g");
+  EXPECT_LT(std::abs(g - 0.8), std::max(3 * sigma_g, 0.01)) << g << " +- " << sigma_g;
+
+  r = RunThinslab(laser + "--exposures-us auto --resume " + dir / "planned");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(Has(r.output, "already complete")) << r.output;
+}
+
+// `acquire shadow-maps --exposure-us auto`: on a rig whose light saturates the fixed 20 ms
+// exposure (the clean board at 1.6x the full well), the probe's exposure keeps the flat field
+// below the range and `fit tau` maps the whole region; the fixed exposure is refused by both.
+TEST(CliExposurePlan, TheShadowMapPlanKeepsTheFlatFieldInRange) {
+  TempDir dir;
+  const std::string shadow =
+      "acquire shadow-maps --quiet --camera sim --camera-width-px 160 --camera-height-px 120 --reference-fill 1.6 ";
+  RunResult r = RunThinslab(shadow + dir / "fixed");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(Has(r.output, "retake [saturation]: 'reference, clean'")) << r.output;
+  r = RunThinslab("fit tau --quiet " + dir / "fixed");
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(Has(r.output, "saturated")) << r.output;
+
+  r = RunThinslab(shadow + "--exposure-us auto " + dir / "planned");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_FALSE(Has(r.output, "[saturation]")) << r.output;
+  EXPECT_TRUE(Has(r.output, "verdict: good")) << r.output;
+  Session session;
+  ASSERT_TRUE(ReadSession(dir / "planned", &session).ok());
+  EXPECT_TRUE(Has(session.acquisition.plan, "exposure-plan = exposure ")) << session.acquisition.plan;
+  std::set<double> exposures;
+  for (const FrameRecord& f : session.frames) exposures.insert(f.exposure_time_us);
+  ASSERT_EQ(exposures.size(), 1u);
+  // 80 % of the range where 20 ms filled 1.6x the full well at the image centre.
+  EXPECT_LT(*exposures.begin(), 20000 * 0.8 / 1.6 * 1.1);
+  EXPECT_GT(*exposures.begin(), 20000 * 0.8 / 1.6 * 0.5);
+  r = RunThinslab("fit tau --quiet " + dir / "planned");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(fs::path(dir / "planned") / "fit" / "tau" / "summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(in);
+  EXPECT_EQ(summary.at("pixels").at("saturated"), 0) << summary.dump();
+  EXPECT_GT(summary.at("pixels").at("fitted").get<double>(), 0.95 * summary.at("pixels").at("total").get<double>());
 }
 
 }  // namespace
