@@ -542,6 +542,7 @@ Status PlanDotScanBracket(const CommonOptions& common, DotScanSessionOptions& do
 struct LaserPlanText {
   double max_exposure_us = 1e7;
   double outer_angle_deg = 60;
+  double ring_standard_errors = 100;  // 10 left sigma_g 1.1-1.5x the fixed bracket's (docs/acquisition.md).
   std::string rig_capture;
 };
 
@@ -579,6 +580,7 @@ Status PlanLaserBracket(const CommonOptions& common, const LaserPlanText& text, 
         geometry.outer_angle_deg = text.outer_angle_deg;
         ExposurePlanOptions options;
         options.max_exposure_us = text.max_exposure_us;
+        options.edge_sigmas = text.ring_standard_errors;
         return ProbeAndPlanLaserExposures(camera, laser, session.capture_flat ? flat_source : nullptr, change,
                                           session.capture_clean ? "clean" : "contaminated", geometry, options, result);
       },
@@ -727,6 +729,8 @@ int AcquireLaser(int argc, char** argv, bool sim) {
                    "--exposures-us auto: longest exposure allowed [us]");
   parser.AddDouble("plan-outer-angle-deg", &laser_plan.outer_angle_deg,
                    "--exposures-us auto: the fit's outermost ring, measured in the longest exposure [deg]");
+  parser.AddDouble("plan-ring-standard-errors", &laser_plan.ring_standard_errors,
+                   "--exposures-us auto: the ring's mean over its standard error in the longest exposure");
   parser.AddString(
       "plan-rig", &laser_plan.rig_capture,
       "--exposures-us auto with a real camera: a calibrated capture of this rig (camera pose, board, beam)");
