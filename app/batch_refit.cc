@@ -45,6 +45,7 @@ struct Row {
   double seconds = 0;
   std::string note;  // The fit's error line, or why nothing ran.
   std::string options_digest;
+  std::string capture_digest;  // CaptureDigest when the fit started.
 };
 
 // The last "error: ..." line of a fit's output (or its last line).
@@ -114,6 +115,38 @@ std::string OptionsDigest(const std::string& fit_dir) {
   std::string ini;
   if (!ReadFileToString(JoinPath(fit_dir, "options.ini"), &ini).ok()) return "";
   return Digest(ini);
+}
+
+// What a fit reads from a capture: its manifest (content), every file under calib/ and every
+// frame and variance file it lists (path, size and modification time: re-taken frames, a new
+// calibration or a resumed session change it; reading every frame's bytes would cost a fit's
+// worth of I/O). A file that cannot be stat'ed enters as missing.
+std::string CaptureDigest(const std::string& dir, const Session& session) {
+  std::ostringstream text;
+  auto add_file = [&text](const std::string& path, const std::string& name) {
+    std::error_code ec;
+    const auto size = fs::file_size(path, ec);
+    if (ec) {
+      text << name << " missing\n";
+      return;
+    }
+    const auto time = fs::last_write_time(path, ec);
+    text << name << " " << size << " " << (ec ? 0 : time.time_since_epoch().count()) << "\n";
+  };
+  std::string manifest;
+  if (ReadFileToString(JoinPath(dir, kSessionManifestName), &manifest).ok()) text << Digest(manifest) << "\n";
+  std::vector<std::string> calibration;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(JoinPath(dir, "calib"), ec), end; !ec && it != end; it.increment(ec)) {
+    if (it->is_regular_file(ec)) calibration.push_back(fs::relative(it->path(), dir, ec).string());
+  }
+  std::sort(calibration.begin(), calibration.end());
+  for (const std::string& name : calibration) add_file(JoinPath(dir, name), name);
+  for (const FrameRecord& frame : session.frames) {
+    if (!frame.file.empty()) add_file(JoinPath(dir, frame.file), frame.file);
+    if (!frame.variance_file.empty()) add_file(JoinPath(dir, frame.variance_file), frame.variance_file);
+  }
+  return Digest(text.str());
 }
 
 }  // namespace
@@ -206,13 +239,18 @@ Status RunBatchRefit(const BatchRun& run, std::ostream& log, int* failures) {
     const std::string fit_dir = JoinPath(JoinPath(dir, "fit"), row.fit);
     const nlohmann::json& recorded = state["captures"].contains(name) ? state["captures"][name] : nlohmann::json();
     const std::string digest = OptionsDigest(fit_dir);
-    if (!run.force && recorded.is_object() && recorded.value("status", "") != "failed" &&
-        recorded.value("fit", "") == row.fit && recorded.value("args", "") == row.args && !digest.empty() &&
-        recorded.value("options_digest", "") == digest && FileExists(JoinPath(fit_dir, "summary.json"))) {
+    row.capture_digest = CaptureDigest(dir, session);
+    const bool same_fit = recorded.is_object() && recorded.value("status", "") != "failed" &&
+                          recorded.value("fit", "") == row.fit && recorded.value("args", "") == row.args &&
+                          !digest.empty() && recorded.value("options_digest", "") == digest &&
+                          FileExists(JoinPath(fit_dir, "summary.json"));
+    if (!run.force && same_fit && recorded.value("capture_digest", "") == row.capture_digest) {
       row.status = "current";
       row.options_digest = digest;
       row.note = "fit/" + row.fit + " has these options";
     } else {
+      // A fit of other options, or of the capture before it changed (frames, calibration).
+      if (!run.force && same_fit) row.note = "the capture changed since its fit";
       queue.push_back(rows.size());
     }
     rows.push_back(row);
@@ -232,7 +270,8 @@ Status RunBatchRefit(const BatchRun& run, std::ostream& log, int* failures) {
                                       {"status", r.status},
                                       {"seconds", r.seconds},
                                       {"note", r.note},
-                                      {"options_digest", r.options_digest}};
+                                      {"options_digest", r.options_digest},
+                                      {"capture_digest", r.capture_digest}};
     }
     return WriteFileAtomically(state_path, state.dump(2) + "\n");
   };
@@ -281,7 +320,7 @@ Status RunBatchRefit(const BatchRun& run, std::ostream& log, int* failures) {
     if (exit_code == 0) {
       row.status = "fitted";
       row.options_digest = OptionsDigest(fit_dir);
-      row.note = "";
+      if (!row.note.empty()) row.note = "refitted: " + row.note;
     } else {
       row.status = "failed";
       row.note = "exit " + std::to_string(exit_code) + ": " + ErrorLine(output) + " (log " + it->second.log_path + ")";

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // Issue #29 item 2, through the binary: `thinslab batch ROOT` refits every capture under ROOT with
 // the fit its kind takes, skips fits that are complete and current (the batch's options and the
-// digest of the options.ini the fit wrote), refits when either changes, keeps going past a
+// digest of the options.ini the fit wrote), refits when either changes or the capture changed
+// (its manifest, calibration files, frames), keeps going past a
 // broken capture (and exits 1 naming it), splits a folder into shards, and resumes after a kill.
 #include <gtest/gtest.h>
 
@@ -91,6 +92,23 @@ TEST(CliBatch, FitsEveryCaptureSkipsCurrentOnesAndRefitsWhenOptionsChange) {
   state = ReadJsonFile(root + "/thinslab_batch.json");
   EXPECT_EQ(Status(state, "a"), "current");
   EXPECT_EQ(Status(state, "c"), "fitted");
+
+  // A capture that changed after its fit (a frame re-taken: rewritten with a new time) is
+  // refitted, with a note that says why; the others stay current.
+  const nlohmann::json b_session = ReadJsonFile(root + "/b/session.json");
+  const std::string frame = root + "/b/" + b_session["frames"][1]["file"].get<std::string>();
+  std::string bytes;
+  ASSERT_TRUE(ReadFileToString(frame, &bytes).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_TRUE(WriteFileAtomically(frame, bytes).ok());
+  r = RunThinslab("batch " + root + " --tau-options '--g 0.7'");
+  state = ReadJsonFile(root + "/thinslab_batch.json");
+  EXPECT_EQ(Status(state, "a"), "current");
+  EXPECT_EQ(Status(state, "b"), "fitted");
+  EXPECT_EQ(Status(state, "c"), "current");
+  EXPECT_NE(state["captures"]["b"]["note"].get<std::string>().find("the capture changed since its fit"),
+            std::string::npos)
+      << state.dump();
 
   // Shard 1 of 2 of the sorted captures a, b, c, d: b and d, in a state file of its own.
   r = RunThinslab("batch " + root + " --shard 1/2 --tau-options '--g 0.7'");
