@@ -134,9 +134,11 @@ Status PlanDmfMemory(int num_points, int grid_width, int num_dots, int num_valid
   const double ndf = 8.0 * Sqr(options.fit_ndf_resolution);  // One point's log_ndf (doubles).
   const double shape = 4.0 * nd;  // A slice shape: about one u-grid node per dot (fit/dmf_slice_shape.h).
   // Per point whatever the mode: its fit and clustering entries, the map images, the
-  // rectifier's sub-samples, the validation dots' values and the stages' per-point vectors.
+  // rectifier's sub-samples, the validation dots' values, the stages' per-point vectors and
+  // (under MPI; counted on one process too, the estimate stays an upper bound) the 9 bytes a
+  // point of the dot columns in flight of a round.
   const double per_point = sizeof(DmfPointFit) + 4 * (4 + 8) + 24 * 4 + 16 * 4 + 3 * 8 +
-                           Sqr(options.supersample) * 8.0 + 8.0 * num_validation_dots + 64;
+                           Sqr(options.supersample) * 8.0 + 8.0 * num_validation_dots + 64 + 9;
   // Whatever the grid: the process itself (about 100 MiB resident for a tiny fit: code, libraries,
   // the capture's manifest), a bracket's camera frames and their HDR images (about 64 bytes
   // per camera pixel), the PCA subsample's shapes.
