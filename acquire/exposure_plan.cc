@@ -254,10 +254,6 @@ Status ProbeAndPlanDotScanExposures(Camera* camera, Projector* projector, const 
   return PlanExposures(brightest, black, lobes, camera->info(), refresh_period_s, options, plan);
 }
 
-}  // namespace thinslab
-
-namespace thinslab {
-
 bool LaserProbeGeometry::Check(std::string* error) const {
   std::ostringstream msg;
   if (!(board_distance_m > 0) || !std::isfinite(board_distance_m)) {
@@ -313,8 +309,9 @@ Status ProbeAndPlanLaserExposures(Camera* camera, Laser* laser, Projector* flat_
   ring_label << "the lobe's ring at " << Num(geometry.outer_angle_deg) << " degrees (" << ring.size()
              << " pixels, through the sample)";
   if (ring.size() < 20) {
-    return Status::Error("exposure probe: " + ring_label.str() + " is not in camera '" + geometry.camera.id +
-                         "''s view: check the manifest's camera pose, board distance and beam, or give --exposures-us");
+    return Status::Error("exposure probe: " + ring_label.str() + " is not in the view of camera '" +
+                         geometry.camera.id +
+                         "': check the manifest's camera pose, board distance and beam, or give --exposures-us");
   }
   const CameraInfo& info = camera->info();
   const double range = info.saturation_dn - info.black_level_dn;

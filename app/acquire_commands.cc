@@ -611,6 +611,7 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
       "in its brightest pixel");
   double max_exposure_us = 1e7;
   parser.AddDouble("max-exposure-us", &max_exposure_us, "--exposure-us auto: longest exposure allowed [us]");
+  AddSyncOptions(&parser, &session.sync);
   int exit_code = 0;
   if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   Status status = CheckSimExposureStep(simulated.rig.sensor);
