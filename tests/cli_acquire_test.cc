@@ -527,6 +527,22 @@ TEST_F(CliAcquireTest, UnknownKindAndOptionAreRefused) {
   EXPECT_FALSE(fs::exists(*dir_ / "h"));
 }
 
+// Every kind keeps the display-camera synchronisation options (once dropped from shadow-maps
+// by an edit of its exposure option, unnoticed), and the kinds that plan their exposures say so.
+TEST_F(CliAcquireTest, EveryKindTakesTheSynchronisationOptions) {
+  for (const char* kind : {"shadow-maps", "laser", "dot-scan", "bracket", "gamma"}) {
+    const RunResult r = RunThinslab(std::string("acquire ") + kind + " --camera sim --help");
+    EXPECT_EQ(r.exit_code, 0) << kind << ": " << r.output;
+    for (const char* option : {"--settle-captures", "--max-sync-captures", "--min-change-dn", "--sync-read-noise-dn"}) {
+      EXPECT_NE(r.output.find(option), std::string::npos) << kind << " lacks " << option;
+    }
+  }
+  for (const char* kind : {"shadow-maps", "laser", "dot-scan"}) {
+    const RunResult r = RunThinslab(std::string("acquire ") + kind + " --camera sim --help");
+    EXPECT_NE(r.output.find("auto"), std::string::npos) << kind << ": " << r.output;
+  }
+}
+
 TEST_F(CliAcquireTest, AbsentUsbLaserIsNamed) {
   ExpectDeviceError("acquire laser --laser hid-relay:dead:beef:1 " + *dir_ / "usb", {"dead:beef"}, *dir_ / "usb");
   ExpectDeviceError("acquire laser --laser hid-relay:zz " + *dir_ / "usb", {"hid-relay:zz"}, *dir_ / "usb");
