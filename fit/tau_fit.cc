@@ -217,30 +217,40 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
                            "capture clean glass or use reference 'auto'");
     }
     reference = data.reference;
-  } else if (options.reference == "auto") {
+  }
+  // Reference "auto" / "flat": a clean surface through the pixels of `clean_light` judged clean.
+  const bool judged_reference = options.reference != "frame";
+  auto fit_judged_reference = [&](const Image& clean_light) {
     std::vector<uint8_t> usable(n);
-    for (size_t i = 0; i < n; ++i) usable[i] = status[i] == 0 && data.shadow.data()[i] > 0;
-    auto quadratic = [w, h](int i, double* b) {
-      const double x = ((i % w) + 0.5) / w - 0.5, y = ((i / w) + 0.5) / h - 0.5;
-      b[0] = 1; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
-    };
-    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, data.shadow_variance, usable, 6, quadratic, "auto", &reference,
-                                               &summary->pixels_judged_clean, &summary->reference_relative_sigma));
-  } else {
+    for (size_t i = 0; i < n; ++i) usable[i] = status[i] == 0 && clean_light.data()[i] > 0;
+    if (options.reference == "auto") {
+      auto quadratic = [w, h](int i, double* b) {
+        const double x = ((i % w) + 0.5) / w - 0.5, y = ((i / w) + 0.5) / h - 0.5;
+        b[0] = 1;
+        b[1] = x;
+        b[2] = y;
+        b[3] = x * x;
+        b[4] = x * y;
+        b[5] = y * y;
+      };
+      return FitCleanReference(clean_light, data.shadow_variance, usable, 6, quadratic, "auto", &reference,
+                               &summary->pixels_judged_clean, &summary->reference_relative_sigma);
+    }
+    auto flat = [&data](int i, double* b) { b[0] = data.flat.data()[i]; };
+    return FitCleanReference(clean_light, data.shadow_variance, usable, 1, flat, "flat", &reference,
+                             &summary->pixels_judged_clean, &summary->reference_relative_sigma);
+  };
+  if (options.reference == "flat") {
     if (data.flat.empty()) {
       return Status::Error("FitTau: TauFitOptions::reference = 'flat' but the session has no calib/flat_field.exr; "
                            "run `thinslab calib flat` or use reference 'frame' or 'auto'");
     }
     // Map pixels without a valid flat are masked as dark (no reference).
-    std::vector<uint8_t> usable(n);
     for (size_t i = 0; i < n; ++i) {
       if (status[i] == 0 && !(data.flat.data()[i] > 0)) status[i] = static_cast<uint8_t>(TauPixelStatus::kDark);
-      usable[i] = status[i] == 0 && data.shadow.data()[i] > 0;
     }
-    auto flat = [&data](int i, double* b) { b[0] = data.flat.data()[i]; };
-    THINSLAB_RETURN_IF_ERROR(FitCleanReference(data.shadow, data.shadow_variance, usable, 1, flat, "flat", &reference,
-                                               &summary->pixels_judged_clean, &summary->reference_relative_sigma));
   }
+  if (judged_reference) THINSLAB_RETURN_IF_ERROR(fit_judged_reference(data.shadow));
   std::vector<float> ref_values;
   for (size_t i = 0; i < n; ++i) {
     if (status[i] == 0) ref_values.push_back(reference.data()[i]);
@@ -252,13 +262,8 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   }
   std::vector<double> m(n, 1.0), sigma_m(n, 1.0);
   const double min_ratio = std::exp(-options.tau_max);
-  for (size_t i = 0; i < n; ++i) {
-    if (status[i] != 0) continue;
+  auto compute_ratio = [&](size_t i) {
     const double r = reference.data()[i], s = data.shadow.data()[i];
-    if (!(r > options.min_reference_fraction * ref_median)) {
-      status[i] = static_cast<uint8_t>(TauPixelStatus::kDark);
-      continue;
-    }
     m[i] = s / r;
     double var_s = data.shadow_variance.empty() ? 0 : data.shadow_variance.data()[i];
     double var_r = (options.reference == "frame" && !data.reference_variance.empty()) ? data.reference_variance.data()[i] : 0;
@@ -266,6 +271,14 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     sigma_m[i] = std::max(std::sqrt(var_m), 1e-4);
     // Signal indistinguishable from zero: cannot be measured.
     if (s <= 2.0 * std::sqrt(var_s) && s < min_ratio * r) status[i] = static_cast<uint8_t>(TauPixelStatus::kDark);
+  };
+  for (size_t i = 0; i < n; ++i) {
+    if (status[i] != 0) continue;
+    if (!(reference.data()[i] > options.min_reference_fraction * ref_median)) {
+      status[i] = static_cast<uint8_t>(TauPixelStatus::kDark);
+      continue;
+    }
+    compute_ratio(i);
   }
 
   // Plain estimate, Gu et al. 2007 Eq. 7: tau = -ln(I / I_clean).
@@ -292,9 +305,11 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   std::vector<double> tau(n, 0.0);
   for (size_t i = 0; i < n; ++i) tau[i] = tau_plain.data()[i];
   std::vector<double> scattered(n, 0.0);
+  // Twice-scattered light over E0 (the model term of sigma_tau below); 0 without refinement.
+  std::vector<double> twice_scattered(n, 0.0);
   if (options.refine_scattering && options.layer_albedo > 0) {
-    const ScatterKernelBank bank =
-        LayerScatterKernelBank(options, data.board_distance_m, data.pixel_pitch_m, w, h);
+    auto bank = std::make_unique<ScatterKernelBank>(
+        LayerScatterKernelBank(options, data.board_distance_m, data.pixel_pitch_m, w, h));
     // Incident light proxy: the reference (E0 times the board-to-camera factor, which varies
     // slowly compared with the scattering kernel). Unmeasured pixels emit with the median.
     Image e0(w, h), tau_image(w, h);
@@ -341,13 +356,16 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     // moves tau little, so S hardly changes); then at most two outer iterations polish with
     // the Ceres solve of the prior, which costs ~10x a closed-form iteration.
     bool polishing = false;
-    int polish_iterations = 0;
+    int polish_iterations = 0, reference_refits = 0;
+    constexpr int kMaxReferenceRefits = 5;
     ProgressTracker progress(options.progress, "fit tau: scattered-light iterations (Gu Eq. 6)",
                              options.max_outer_iterations);
-    for (int outer = 0; outer < options.max_outer_iterations; ++outer) {
+    // Each refit of a judged clean reference (below) starts a new fixed point with its own budget.
+    int iteration_budget = options.max_outer_iterations;
+    for (int outer = 0; outer < iteration_budget; ++outer) {
       if (!progress.Report(outer)) return Status::Error("FitTau: cancelled");
       for (size_t i = 0; i < n; ++i) tau_image.data()[i] = static_cast<float>(std::clamp(tau[i], 0.0, options.tau_max));
-      const Image s_board = bank.Scattered(e0, tau_image);
+      const Image s_board = bank->Scattered(e0, tau_image);
       for (size_t i = 0; i < n; ++i) {
         scattered[i] = s_board.data()[i] / e0.data()[i];
         unscattered[i] = m[i] - scattered[i];
@@ -393,13 +411,64 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       summary->final_max_update_tau = max_update;
       if (polishing) ++polish_iterations;
       const bool converged = max_update < options.outer_tolerance_tau;
-      if (!polishing && problem && (converged || outer + 3 >= options.max_outer_iterations)) {
+      if (converged && judged_reference && reference_refits < kMaxReferenceRefits) {
+        // Not in Gu et al. 2007: the pixels judged clean carry the light the layer scatters
+        // onto them (Eq. 6), so a surface through them reads I_clean high and tau high (+0.006
+        // over a densely specked texture at 1 mm, docs/stability.md). Refit it through the
+        // shadow less the modelled S, then iterate again from the current map.
+        Image clean_light(w, h);
+        for (size_t i = 0; i < n; ++i) clean_light.data()[i] = data.shadow.data()[i] - s_board.data()[i];
+        const Image before = reference;
+        THINSLAB_RETURN_IF_ERROR(fit_judged_reference(clean_light));
+        // Each refit starts from a map fitted with the previous surface (the first, with one
+        // that read every pixel's tau high and so S high too): repeat until the surface moves
+        // less than the tau tolerance (d tau = d I_clean / I_clean).
+        double largest_change = 0;
+        for (size_t i = 0; i < n; ++i) {
+          if (status[i] == 0)
+            largest_change =
+                std::max(largest_change, std::abs(static_cast<double>(reference.data()[i]) / before.data()[i] - 1));
+        }
+        ++reference_refits;
+        if (largest_change < options.outer_tolerance_tau) reference_refits = kMaxReferenceRefits;
+        iteration_budget = outer + 1 + options.max_outer_iterations;
+        for (size_t i = 0; i < n; ++i) {
+          if (status[i] == 0) compute_ratio(i);
+          if (status[i] != static_cast<uint8_t>(TauPixelStatus::kOutside)) e0.data()[i] = reference.data()[i];
+        }
+        if (tracing)
+          *trace << "  clean reference refitted through the shadow less S: " << reference.data()[traced] << " DN/us\n";
+        continue;
+      }
+      if (!polishing && problem && (converged || outer + 3 >= iteration_budget)) {
         polishing = true;
         continue;
       }
       if (converged || polish_iterations >= 2) break;
     }
     progress.Report(options.max_outer_iterations);  // Done (converged iterations end early).
+    // The light Eq. 6 leaves out (not in Gu et al. 2007). Light scattered once at a layer point
+    // x' is scattered again there with probability ~ albedo (1 - e^{-tau(x')}) (the layer is
+    // thin, so both events share x'), and twice-scattered HG light has mean cosine g^2. So the
+    // second order is Eq. 6 again with the source E0 albedo (1 - e^{-tau}) and phase g^2,
+    // convolved over the layer like S: a thin pixel beside dense ones receives their second
+    // order. (Taking tau at the receiving pixel instead, as before 2026-12-07, left a bright
+    // layer's thin pixels with almost no model term: 0.45 within 1 sigma, docs/stability.md.)
+    bank.reset();  // One bank in memory at a time.
+    TauFitOptions second_order = options;
+    second_order.layer_g = Sqr(options.layer_g);
+    const ScatterKernelBank bank2 =
+        LayerScatterKernelBank(second_order, data.board_distance_m, data.pixel_pitch_m, w, h);
+    Image source(w, h);
+    for (size_t i = 0; i < n; ++i) {
+      const double t = std::clamp(tau[i], 0.0, options.tau_max);
+      tau_image.data()[i] = static_cast<float>(t);
+      const double rescattered = options.layer_albedo * (1 - std::exp(-t));
+      source.data()[i] = static_cast<float>(e0.data()[i] * rescattered / (1 - rescattered));
+    }
+    const Image s2_board = bank2.Scattered(source, tau_image);
+    for (size_t i = 0; i < n; ++i)
+      twice_scattered[i] = std::max(0.0, static_cast<double>(s2_board.data()[i])) / e0.data()[i];
   }
   const auto t_refine = Clock::now();
   summary->refine_s = Seconds(t_plain, t_refine);
@@ -408,20 +477,18 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   // fixed (its noise is averaged over the whole kernel). Terms, in quadrature:
   //  - noise: sigma_m / e^{-tau}; above max_sigma_tau the pixel is dark;
   //  - reference (auto / flat): the clean surface's relative misfit (d tau = d I_clean / I_clean);
-  //  - model: Eq. 6 is single scattering, but once-scattered light is scattered again with
-  //    probability ~ albedo (1 - e^{-tau}) before it leaves the layer, so the unmodelled light
-  //    is ~ albedo (1 - e^{-tau}) S. Not in Gu et al. 2007; on the simulated rig (all orders)
-  //    it matches the read-low bias of uniform layers within 20 % up to tau 2.5 and
-  //    underestimates it by up to 1.5x at tau 3-3.8 (docs/stability.md);
+  //  - model: Eq. 6 is single scattering; the unmodelled light is the twice-scattered light
+  //    (above). Not in Gu et al. 2007; on the simulated rig (all orders) the local form of this
+  //    term matched the read-low bias of uniform layers within 20 % up to tau 2.5 and
+  //    underestimated it by up to 1.5x at tau 3-3.8 (docs/stability.md);
   //  - resolution (below, from the map's gradient).
   std::vector<double> sigma_tau(n, 0.0), sigma_noise_of(n, 0.0), sigma_model_of(n, 0.0);
   for (size_t i = 0; i < n; ++i) {
     if (status[i] != 0) continue;
     const double transmission = std::max(std::exp(-tau[i]), min_ratio);
     const double sigma_noise = sigma_m[i] / transmission;
-    const double unmodelled = options.layer_albedo * (1 - std::exp(-std::max(tau[i], 0.0))) * std::max(scattered[i], 0.0);
     sigma_noise_of[i] = sigma_noise;
-    sigma_model_of[i] = unmodelled / transmission;
+    sigma_model_of[i] = twice_scattered[i] / transmission;
     if (tau[i] >= options.tau_max - 1e-9) {
       status[i] = static_cast<uint8_t>(TauPixelStatus::kClamped);
     } else if (sigma_noise > options.max_sigma_tau) {

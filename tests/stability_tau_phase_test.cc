@@ -148,6 +148,42 @@ TEST(TauStability, DenseLayerErrorIsCoveredBySigma) {
   EXPECT_LE(r.rms_abs_error, kMaxErrorOverSigmaTau * r.rms_sigma_tau);
 }
 
+// The coverage goal of issue #24 (>= 60 % of status-ok pixels within 1 sigma_tau, >= 90 % within
+// 2) where the light Eq. 6 leaves out is spread over the map: a bright layer (albedo 0.9) close
+// to the board, and hard-edged patches whose multiply scattered light lands on their thin
+// neighbours. Before the model term was convolved over the layer (2026-12-07) these read
+// 0.45 / 0.74 and 0.54 / 0.81 (docs/stability.md, "Coverage of the error bars").
+TEST(TauStability, SpreadMultipleScatteringIsCoveredBySigma) {
+  constexpr double kGoalWithin1Sigma = 0.6, kGoalWithin2Sigma = 0.9;
+  TauStabilityCase bright = SpecksCase();
+  bright.sim.rig.layer_albedo = 0.9;
+  bright.sim.rig.board_distance_m = 5e-3;
+  TauStabilityCase edges = SpecksCase();
+  const double patch_taus[4] = {0.5, 1, 2, 3};
+  edges.tau_true = PatchTau(kTextureSize, kTextureSize, patch_taus, 0);
+  for (const auto& [c, label] : {std::pair{bright, "albedo 0.9, board 5 mm"}, std::pair{edges, "patches tau 0.5-3"}}) {
+    const TauStabilityResult r = RunTau(c, label);
+    ASSERT_TRUE(r.pipeline.ok()) << label << ": " << r.pipeline.message();
+    ASSERT_GE(r.ok, r.pixels / 2) << label;
+    EXPECT_GE(static_cast<double>(r.within_1_sigma) / r.ok, kGoalWithin1Sigma) << label;
+    EXPECT_GE(static_cast<double>(r.within_2_sigma) / r.ok, kGoalWithin2Sigma) << label;
+  }
+}
+
+// Reference "auto" judges the clean pixels of the shadow frame itself; they carry the light the
+// specks scatter onto them, so the surface read every tau +0.006 high, beyond sigma_tau (0.31 /
+// 0.69 within 1 / 2 sigma). The surface is now refitted through the shadow less the modelled S.
+TEST(TauStability, JudgedReferenceOfASpeckledShadowIsCoveredBySigma) {
+  TauStabilityCase c = SpecksCase();
+  c.run.fit.reference = "auto";
+  const TauStabilityResult r = RunTau(c, "reference auto");
+  ASSERT_TRUE(r.pipeline.ok()) << r.pipeline.message();
+  ASSERT_GE(r.ok, r.pixels / 2);
+  EXPECT_LE(std::abs(r.mean_error), 0.003);
+  EXPECT_GE(static_cast<double>(r.within_1_sigma) / r.ok, 0.6);
+  EXPECT_GE(static_cast<double>(r.within_2_sigma) / r.ok, 0.9);
+}
+
 // Beyond tau_max: clamped, and the pixels around a clamped one (lower bounds only) flagged; no
 // pixel with tau_true > tau_max passes as ok, and no clamp without cause.
 TEST(TauStability, TauBeyondTauMaxIsClampedNeverReportedOk) {
