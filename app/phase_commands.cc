@@ -37,6 +37,9 @@ int RunFitPhase(int argc, char** argv) {
   parser.AddString("tau-map", &tau_map, "take tau as the median of a `fit tau` map (tau.exr) of the same layer");
   parser.AddBool("tau-free", &options.tau_free, "fit tau too, with a Gaussian prior around --tau");
   parser.AddDouble("tau-prior-sigma", &options.tau_prior_sigma, "prior standard deviation of tau");
+  parser.AddDouble("albedo", &options.layer_albedo,
+                   "layer single-scattering albedo omega0 [0, 1] (given, as for fit tau): bounds sigma_g's "
+                   "multiple-scattering term");
   parser.AddDouble("ring-width-px", &options.ring_width_px, "ring width [board pixels]");
   parser.AddDouble("core-beam-radii", &options.core_beam_radii, "excluded core radius [beam radii]");
   parser.AddDouble("core-margin-px", &options.core_margin_px, "excluded core: at least beam radius + this [px]");

@@ -193,6 +193,7 @@ Status RunPhaseStabilityCase(const PhaseStabilityCase& test_case, const std::str
   THINSLAB_RETURN_IF_ERROR(SynthesizeLaserLobeSession(test_case.sim, session_dir));
   PhaseFitOptions options = test_case.fit;
   if (options.tau <= 0) options.tau = test_case.sim.rig.layer_tau > 0 ? test_case.sim.rig.layer_tau : 0.3;
+  options.layer_albedo = test_case.sim.rig.layer_albedo;  // Given, as the tau cases' fits are.
   std::vector<LaserRing> rings;
   LaserLobePreparationOptions preparation;
   preparation.supersample = test_case.supersample;

@@ -346,10 +346,12 @@ Status RunGCoverage(const std::string& out_dir, int seeds, std::vector<CoverageP
       THINSLAB_RETURN_IF_ERROR(RunPhaseStabilityCase(c, work, &r));
       const PhaseFitSummary& s = r.summary;
       if (!r.pipeline.ok() || !s.IsUsable()) continue;
-      std::fprintf(stderr, "  seed %d: g %.4f +- %.4f (cov %.4f jack %.4f range %.4f second-order %.4f choice %.4f), "
-                   "theta_max %.0f, chi2/dof %.1f\n", 100 + seed, s.g, s.sigma_g, s.sigma_g_covariance,
-                   s.sigma_g_jackknife, s.sigma_g_range, s.sigma_g_multiple, s.sigma_g_choice, s.max_theta_deg,
-                   s.chi2_reduced);
+      std::fprintf(stderr,
+                   "  seed %d: g %.4f +- %.4f (cov %.4f jack %.4f range %.4f second-order %.4f [predicted c %.3f: "
+                   "%.4f] choice %.4f), theta_max %.0f, chi2/dof %.1f\n",
+                   100 + seed, s.g, s.sigma_g, s.sigma_g_covariance, s.sigma_g_jackknife, s.sigma_g_range,
+                   s.sigma_g_multiple, s.predicted_second_order_fraction, s.sigma_g_predicted_second_order,
+                   s.sigma_g_choice, s.max_theta_deg, s.chi2_reduced);
       ++usable;
       within_1 += std::abs(s.g - named.g) <= s.sigma_g;
       within_2 += std::abs(s.g - named.g) <= 2 * s.sigma_g;

@@ -19,6 +19,8 @@ bool PhaseFitOptions::Check(std::string* error) const {
   std::ostringstream msg;
   if (!(tau > 0 && tau <= 10)) {
     msg << "PhaseFitOptions::tau = " << tau << ". Violated constraint: (0, 10]";
+  } else if (!(layer_albedo >= 0 && layer_albedo <= 1)) {
+    msg << "PhaseFitOptions::layer_albedo = " << layer_albedo << ". Violated constraint: [0, 1]";
   } else if (tau_free && !(tau_prior_sigma > 0)) {
     msg << "PhaseFitOptions::tau_prior_sigma = " << tau_prior_sigma << ". Violated constraint: > 0";
   } else if (!(ring_width_px >= 1)) {
@@ -76,8 +78,9 @@ std::string PhaseFitSummary::FullReport() const {
       << " [" << jackknife_method << "], angle-range consistency "
       << (range_term_available ? std::to_string(sigma_g_range) : std::string("n/a (< 5 rings within half the range)"))
       << ", second-order extension " << sigma_g_multiple << " with relative amplitude " << second_order_fraction
-      << ", choice of the outermost angle " << sigma_g_choice
-      << ")\n"
+      << " (at the layer's predicted " << predicted_second_order_fraction << ": " << sigma_g_predicted_second_order
+      << ")"
+      << ", choice of the outermost angle " << sigma_g_choice << ")\n"
       << "beta: " << beta << " (sigma of log beta " << sigma_log_beta << ")\n"
       << "tau: " << tau << " +- " << sigma_tau << "\n"
       << "rings: " << num_rings << " over theta " << theta_min_deg << " .. " << theta_max_deg << " deg (limit "
@@ -85,8 +88,8 @@ std::string PhaseFitSummary::FullReport() const {
       << "beam centre [m]: " << beam_centre_m.x() << ", " << beam_centre_m.y() << "\n"
       << "lobe detection significance: " << detection_significance << " sigma\n"
       << "chi2/dof: " << chi2_reduced << ", rms normalized residual: " << rms_normalized_residual << "\n"
-      << "flat-fielded: " << (flat_fielded ? "yes" : "no") << ", clean subtracted: " << (clean_subtracted ? "yes" : "no")
-      << "\ncategories (Gu 2007 Fig. 2): ";
+      << "flat-fielded: " << (flat_fielded ? "yes" : "no")
+      << ", clean subtracted: " << (clean_subtracted ? "yes" : "no") << "\ncategories (Gu 2007 Fig. 2): ";
   for (size_t i = 0; i < categories.size(); ++i) out << (i ? ", " : "") << categories[i];
   for (const std::string& w : warnings) out << "\nwarning: " << w;
   out << "\ntime [s]: " << total_s << "\n";
@@ -293,15 +296,26 @@ std::vector<std::string> ChiSquareWarnings(double chi2_reduced, double dof, int 
 // albedo 0.3: error -0.012, those terms 0.003, this one 0.037). On a single-scattering lobe the
 // data pin c near 0 and the term stays near the noise. 0 when no extended fit succeeds; *c_out
 // gets the best c.
+// The data cannot pin c where the twice-scattered lobe at g^2 looks like a slightly lower g
+// (narrow rings of a forward lobe: g 0.8 on a 480 x 360 camera read 0.005 low with this term
+// 0.001-0.003). So g is also refitted at the c the layer predicts (not in Gu et al. 2007): a
+// once-scattered photon scatters again before it leaves the thin layer with probability about
+// r = albedo (1 - e^{-tau}), and again, so the higher orders carry r / (1 - r) of the first
+// (as the multiple-scattering term of fit/tau_fit.cc). *predicted_shift = |g(c_predicted) - g|.
 double TwoOrderSigmaG(const PhaseFitOptions& options, const std::vector<LaserRing>& rings, double log_beta_1,
-                      double g_1, double tau, double chi2_scale, double* c_out) {
+                      double g_1, double tau, double chi2_scale, double c_predicted, double* c_out,
+                      double* predicted_shift) {
   // Profile of the cost over the amplitude c in [0, 1] (a local solver started at c = 0 stays
   // there when adding broad light alone makes the fit worse, although moving g with it would not).
   struct Point {
     double c, g, cost;
   };
   std::vector<Point> profile;
-  for (double c_fixed : {0.0, 0.01, 0.02, 0.03, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1.0}) {
+  std::vector<double> grid = {0.0, 0.01, 0.02, 0.03, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1.0};
+  grid.push_back(c_predicted);
+  *predicted_shift = 0;
+  for (size_t k = 0; k < grid.size(); ++k) {
+    const double c_fixed = grid[k];
     double log_beta = log_beta_1, g = g_1, c = c_fixed, t = tau;
     ceres::Problem problem;
     for (const auto& ring : rings) {
@@ -318,7 +332,9 @@ double TwoOrderSigmaG(const PhaseFitOptions& options, const std::vector<LaserRin
     solver_options.logging_type = ceres::SILENT;
     ceres::Solver::Summary summary;
     ceres::Solve(solver_options, &problem, &summary);
-    if (summary.IsSolutionUsable()) profile.push_back({c_fixed, g, summary.final_cost});
+    if (!summary.IsSolutionUsable()) continue;
+    if (k + 1 == grid.size()) *predicted_shift = std::abs(g - g_1);
+    if (c_fixed <= 1) profile.push_back({c_fixed, g, summary.final_cost});
   }
   *c_out = 0;
   if (profile.empty()) return 0;
@@ -567,9 +583,16 @@ Status FitPhaseAtMaxTheta(const PhaseFitOptions& options, const LaserLobeImages&
   summary->sigma_g_covariance = std::sqrt(std::max(var, 0.0)) * scale;
   summary->sigma_g_jackknife = JackknifeSigmaG(options, *rings, &summary->jackknife_method);
   summary->sigma_g_range = RangeConsistencySigmaG(options, *rings, g, &summary->range_term_available);
-  summary->sigma_g_multiple =
-      TwoOrderSigmaG(options, *rings, log_beta, g, tau, std::max(1.0, summary->chi2_reduced),
-                     &summary->second_order_fraction);
+  {
+    const double r = options.layer_albedo * (1 - std::exp(-tau));
+    // Capped: beyond 10x the first order the layer is no thin single-scattering layer at all.
+    summary->predicted_second_order_fraction = std::min(r / (1 - r), 10.0);
+    const double profile_spread =
+        TwoOrderSigmaG(options, *rings, log_beta, g, tau, std::max(1.0, summary->chi2_reduced),
+                       summary->predicted_second_order_fraction, &summary->second_order_fraction,
+                       &summary->sigma_g_predicted_second_order);
+    summary->sigma_g_multiple = std::max(profile_spread, summary->sigma_g_predicted_second_order);
+  }
   summary->sigma_g = std::hypot(std::hypot(std::max(summary->sigma_g_covariance, summary->sigma_g_jackknife),
                                            summary->sigma_g_range),
                                 summary->sigma_g_multiple);

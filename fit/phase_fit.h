@@ -24,6 +24,10 @@ struct PhaseFitOptions {
   // Fit tau too, with a Gaussian prior N(tau, tau_prior_sigma).
   bool tau_free = false;
   double tau_prior_sigma = 0.1;
+  // Layer single-scattering albedo omega0 (given, as for `fit tau`; Eq. 8 absorbs it into beta).
+  // Only sigma_g uses it: the second order the layer predicts, r / (1 - r) of the first with
+  // r = albedo (1 - e^{-tau}), bounds the g shift of the multiple scattering Eq. 8 leaves out.
+  double layer_albedo = 0.3;
   double ring_width_px = 2;  // Ring width in board pixels.
   // The spike core is excluded: rings start at r = max(core_beam_radii * beam radius,
   // beam radius + core_margin_px pixels) from the beam centre (docs/models/laser_lobe_g.md).
@@ -79,10 +83,12 @@ struct PhaseFitSummary {
   // With max_theta_auto, sigma_g also holds (in quadrature) |g - g at the neighbouring candidate
   // angle|: what the choice of the outermost angle moves g by (0 without it).
   double sigma_g_choice = 0;
-  // Profile interval of g when Eq. 8 is extended by a second-order lobe at g^2 of free relative
-  // amplitude c (in quadrature in sigma_g): the multiple scattering Eq. 8 leaves out
-  // (fit/phase_fit.cc, TwoOrderSigmaG), and the best-fitting c.
+  // The multiple scattering Eq. 8 leaves out (in quadrature in sigma_g): the larger of the
+  // profile interval of g when Eq. 8 is extended by a second-order lobe at g^2 of free relative
+  // amplitude c, and the shift of g at the c the layer predicts (fit/phase_fit.cc,
+  // TwoOrderSigmaG); the best-fitting c; the predicted c and its g shift.
   double sigma_g_multiple = 0, second_order_fraction = 0;
+  double predicted_second_order_fraction = 0, sigma_g_predicted_second_order = 0;
   double beta = 0, sigma_log_beta = 0;
   double tau = 0, sigma_tau = 0;
   double chi2_reduced = 0;

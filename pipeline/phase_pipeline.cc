@@ -101,6 +101,8 @@ std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images,
   j["sigma_g_range"] = s.range_term_available ? nlohmann::json(s.sigma_g_range) : nlohmann::json(nullptr);
   j["sigma_g_multiple"] = s.sigma_g_multiple;
   j["second_order_fraction"] = s.second_order_fraction;
+  j["predicted_second_order_fraction"] = s.predicted_second_order_fraction;
+  j["sigma_g_predicted_second_order"] = s.sigma_g_predicted_second_order;
   j["sigma_g_choice"] = s.sigma_g_choice;
   j["beta"] = s.beta;
   j["sigma_log_beta"] = s.sigma_log_beta;

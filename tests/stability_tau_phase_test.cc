@@ -269,6 +269,29 @@ TEST(PhaseStability, GNearOneAndNearZero) {
   }
 }
 
+// A forward lobe (g 0.8, tau 0.3, albedo 0.3) on the small rig reads ~0.005 low from the multiple
+// scattering Eq. 8 leaves out, and the data cannot tell the twice-scattered lobe from a lower g:
+// before sigma_g held the shift at the layer's predicted second order (2026-12-07) none of four
+// seeds was within 1 sigma_g (sigma_g 0.0015-0.0036). The coverage goal of issue #24 on four
+// seeds: at least 3 within 1 sigma_g, all within 2.
+TEST(PhaseStability, ForwardLobeMultipleScatteringIsCoveredBySigma) {
+  int within_1 = 0, within_2 = 0;
+  for (int seed = 101; seed <= 104; ++seed) {
+    PhaseStabilityCase c;
+    c.sim = SmallLaserLobeRig(/*tau=*/0.3, /*g=*/0.8, seed);
+    c.fit.tau = 0.3;
+    const PhaseStabilityResult r = RunPhase(c, Label("g 0.8, seed %g", seed));
+    ASSERT_TRUE(r.summary.IsUsable()) << r.summary.message;
+    const double error = std::abs(r.summary.g - 0.8);
+    within_1 += error <= r.summary.sigma_g;
+    within_2 += error <= 2 * r.summary.sigma_g;
+    // The term is the predicted second order's shift, not noise: it must not dwarf the error.
+    EXPECT_LE(r.summary.sigma_g, 4 * error) << "seed " << seed;
+  }
+  EXPECT_GE(within_1, 3);
+  EXPECT_EQ(within_2, 4);
+}
+
 // Tiny tau: below the detection limit the fit reports no measurable scattering, never a g.
 TEST(PhaseStability, TinyTauIsNoMeasurableScatteringOrWithinTolerance) {
   for (double tau : {0.0, 1e-7, 1e-5}) {
