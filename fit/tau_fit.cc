@@ -357,7 +357,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     // the Ceres solve of the prior, which costs ~10x a closed-form iteration.
     bool polishing = false;
     int polish_iterations = 0, reference_refits = 0;
-    constexpr int kMaxReferenceRefits = 5;
+    constexpr int kMaxReferenceRefits = 10;
     ProgressTracker progress(options.progress, "fit tau: scattered-light iterations (Gu Eq. 6)",
                              options.max_outer_iterations);
     // Each refit of a judged clean reference (below) starts a new fixed point with its own budget.
@@ -411,18 +411,18 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       summary->final_max_update_tau = max_update;
       if (polishing) ++polish_iterations;
       const bool converged = max_update < options.outer_tolerance_tau;
-      if (converged && judged_reference && reference_refits < kMaxReferenceRefits) {
+      if (judged_reference && reference_refits < kMaxReferenceRefits) {
         // Not in Gu et al. 2007: the pixels judged clean carry the light the layer scatters
         // onto them (Eq. 6), so a surface through them reads I_clean high and tau high (+0.006
         // over a densely specked texture at 1 mm, docs/stability.md). Refit it through the
-        // shadow less the modelled S, then iterate again from the current map.
+        // shadow less the modelled S at every iteration, along with the map, until it moves by
+        // less than the tau tolerance. (Refitting only once the map had converged gave the same
+        // maps in 2.5x the iterations.)
         Image clean_light(w, h);
         for (size_t i = 0; i < n; ++i) clean_light.data()[i] = data.shadow.data()[i] - s_board.data()[i];
         const Image before = reference;
         THINSLAB_RETURN_IF_ERROR(fit_judged_reference(clean_light));
-        // Each refit starts from a map fitted with the previous surface (the first, with one
-        // that read every pixel's tau high and so S high too): repeat until the surface moves
-        // less than the tau tolerance (d tau = d I_clean / I_clean).
+        // d tau = d I_clean / I_clean, so the surface's largest relative move is in tau units.
         double largest_change = 0;
         for (size_t i = 0; i < n; ++i) {
           if (status[i] == 0)

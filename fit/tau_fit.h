@@ -53,7 +53,8 @@ struct TauFitOptions {
   // (calib/flat_field.exr, RectifiedShadowMaps::flat) times one scale fitted to those regions
   // (Gu Sec. 5.1; the flat is smoothed, so it assumes a board without texture). With "auto" and
   // "flat" the surface is refitted through the shadow less the modelled scattered light S
-  // (Eq. 6) once the fixed point has converged, until it moves by less than outer_tolerance_tau.
+  // (Eq. 6) at every iteration of the fixed point until it moves by less than
+  // outer_tolerance_tau (at most 10 refits).
   std::string reference = "frame";
   // Largest representable tau; darker pixels are clamped and flagged.
   double tau_max = 4.0;
@@ -71,7 +72,7 @@ struct TauFitOptions {
   // Off by default: on the simulated rig it did not lower the error at default or at 10x less
   // light, and costs 2-4x the time (docs/models/dirty_glass_tau.md has the figures).
   double smoothness_sigma_tau = 0;
-  int max_outer_iterations = 15;      // Per fixed point: each refit of the reference starts one.
+  int max_outer_iterations = 15;      // Counted again from each refit of a judged reference.
   double outer_tolerance_tau = 2e-4;  // Stop when no pixel's tau moves more than this.
   double kernel_max_angle_deg = 80;   // Scattered light beyond this angle is neglected.
   int num_threads = DefaultThreadCount();
