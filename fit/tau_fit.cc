@@ -305,8 +305,8 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   std::vector<double> tau(n, 0.0);
   for (size_t i = 0; i < n; ++i) tau[i] = tau_plain.data()[i];
   std::vector<double> scattered(n, 0.0);
-  // Twice-scattered light over E0 (the model term of sigma_tau below); 0 without refinement.
-  std::vector<double> twice_scattered(n, 0.0);
+  // Multiply scattered light over E0 (the model term of sigma_tau below); 0 without refinement.
+  std::vector<double> multiply_scattered(n, 0.0);
   if (options.refine_scattering && options.layer_albedo > 0) {
     auto bank = std::make_unique<ScatterKernelBank>(
         LayerScatterKernelBank(options, data.board_distance_m, data.pixel_pitch_m, w, h));
@@ -449,15 +449,17 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     progress.Report(options.max_outer_iterations);  // Done (converged iterations end early).
     // The light Eq. 6 leaves out (not in Gu et al. 2007). Light scattered once at a layer point
     // x' is scattered again there with probability ~ albedo (1 - e^{-tau(x')}) (the layer is
-    // thin, so both events share x'), and twice-scattered HG light has mean cosine g^2. So the
-    // second order is Eq. 6 again with the source E0 albedo (1 - e^{-tau}) and phase g^2,
-    // convolved over the layer like S: a thin pixel beside dense ones receives their second
-    // order. (Taking tau at the receiving pixel instead, as before 2026-12-07, left a bright
-    // layer's thin pixels with almost no model term: 0.45 within 1 sigma, docs/stability.md.)
+    // thin, so both events share x'), and again, so the orders above the first carry r / (1 - r)
+    // of it, r = albedo (1 - e^{-tau(x')}); twice-scattered HG light has mean cosine g^2, which
+    // stands in for the higher orders too. So the unmodelled light is Eq. 6 again with the source
+    // E0 r / (1 - r) and phase g^2, convolved over the layer like S: a thin pixel beside dense
+    // ones receives their multiple scattering. (Taking tau at the receiving pixel instead, as
+    // before 2026-12-07, left a bright layer's thin pixels with almost no model term: 0.45 within
+    // 1 sigma, docs/stability.md.)
     bank.reset();  // One bank in memory at a time.
     TauFitOptions second_order = options;
     second_order.layer_g = Sqr(options.layer_g);
-    const ScatterKernelBank bank2 =
+    const ScatterKernelBank multiple_bank =
         LayerScatterKernelBank(second_order, data.board_distance_m, data.pixel_pitch_m, w, h);
     Image source(w, h);
     for (size_t i = 0; i < n; ++i) {
@@ -466,9 +468,9 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       const double rescattered = options.layer_albedo * (1 - std::exp(-t));
       source.data()[i] = static_cast<float>(e0.data()[i] * rescattered / (1 - rescattered));
     }
-    const Image s2_board = bank2.Scattered(source, tau_image);
+    const Image multiple_board = multiple_bank.Scattered(source, tau_image);
     for (size_t i = 0; i < n; ++i)
-      twice_scattered[i] = std::max(0.0, static_cast<double>(s2_board.data()[i])) / e0.data()[i];
+      multiply_scattered[i] = std::max(0.0, static_cast<double>(multiple_board.data()[i])) / e0.data()[i];
   }
   const auto t_refine = Clock::now();
   summary->refine_s = Seconds(t_plain, t_refine);
@@ -477,10 +479,10 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   // fixed (its noise is averaged over the whole kernel). Terms, in quadrature:
   //  - noise: sigma_m / e^{-tau}; above max_sigma_tau the pixel is dark;
   //  - reference (auto / flat): the clean surface's relative misfit (d tau = d I_clean / I_clean);
-  //  - model: Eq. 6 is single scattering; the unmodelled light is the twice-scattered light
-  //    (above). Not in Gu et al. 2007; on the simulated rig (all orders) the local form of this
-  //    term matched the read-low bias of uniform layers within 20 % up to tau 2.5 and
-  //    underestimated it by up to 1.5x at tau 3-3.8 (docs/stability.md);
+  //  - model: Eq. 6 is single scattering; the unmodelled light is the multiply scattered light
+  //    (above). Not in Gu et al. 2007; on the simulated rig (all orders) the read-low bias of
+  //    uniform layers is 1.0-1.26x this term from tau 0.5 to 3.8 (1.5-1.6x at tau 0.1-0.2,
+  //    docs/stability.md);
   //  - resolution (below, from the map's gradient).
   std::vector<double> sigma_tau(n, 0.0), sigma_noise_of(n, 0.0), sigma_model_of(n, 0.0);
   for (size_t i = 0; i < n; ++i) {
@@ -488,7 +490,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     const double transmission = std::max(std::exp(-tau[i]), min_ratio);
     const double sigma_noise = sigma_m[i] / transmission;
     sigma_noise_of[i] = sigma_noise;
-    sigma_model_of[i] = twice_scattered[i] / transmission;
+    sigma_model_of[i] = multiply_scattered[i] / transmission;
     if (tau[i] >= options.tau_max - 1e-9) {
       status[i] = static_cast<uint8_t>(TauPixelStatus::kClamped);
     } else if (sigma_noise > options.max_sigma_tau) {
