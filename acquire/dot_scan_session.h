@@ -43,6 +43,12 @@ struct DotScanSessionOptions {
   // Validation dots (monitor px, any position): captured after the grid like its dots, marked
   // FrameRecord::validation (not fitted; `fit dmf` reports how well it predicts them).
   std::vector<Eigen::Vector2d> validation_dots_px;
+  // Frames of every dot (and of the dark bracket) at the longest exposure, averaged by the HDR
+  // merge. On a display whose black glows, the glow's shot noise in the longest exposure hides
+  // the lobes' tails, and a longer exposure would saturate the glow: only more frames lower it
+  // (as 1/sqrt(frames)). The all-dots frames and the shorter exposures stay single; the dark
+  // bracket takes 4x as many at the longest when this is above 1 (its noise is every dot's).
+  int longest_exposure_frames = 1;
   DisplaySyncOptions sync;
 
   bool Check(std::string* error) const;

@@ -192,6 +192,37 @@ TEST(DotScan, GridSpansTheMonitorOnPixelCentres) {
   EXPECT_NEAR(spec.dots[5].y_px, grid[5].y(), 1e-12);
 }
 
+// Several frames at the longest exposure: every dot and validation dot takes them, the dark
+// bracket four times as many there (its noise is every dot's), the all-dots frame one.
+TEST(DotScan, FramesAtTheLongestExposureRepeatOnlyThere) {
+  DotScanSessionOptions options = SmallScan();
+  options.bracket.exposures_us = {1000, 8000};
+  options.validation_dots_px = {{50.5, 50.5}};
+  options.longest_exposure_frames = 3;
+  const std::vector<PlannedFrame> plan = PlanDotScan(options, 0);
+  auto count = [&](const std::string& kind, double t, bool validation) {
+    int n = 0;
+    for (const PlannedFrame& f : plan)
+      n += f.kind == kind && f.requested_exposure_us == t && f.validation == validation;
+    return n;
+  };
+  EXPECT_EQ(count("all_dots", 1000, false), 1);
+  EXPECT_EQ(count("all_dots", 8000, false), 1);
+  EXPECT_EQ(count("dark", 1000, false), 1);
+  EXPECT_EQ(count("dark", 8000, false), 12);
+  EXPECT_EQ(count("dot", 1000, false), 16);
+  EXPECT_EQ(count("dot", 8000, false), 16 * 3);
+  EXPECT_EQ(count("dot", 8000, true), 3);
+  // One frame each by default, the dark included.
+  options.longest_exposure_frames = 1;
+  const std::vector<PlannedFrame> single = PlanDotScan(options, 0);
+  EXPECT_EQ(single.size(), 2u + 2u + 16u * 2 + 2u);
+  options.longest_exposure_frames = 0;
+  std::string error;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("longest_exposure_frames"), std::string::npos) << error;
+}
+
 // With frames arriving two captures late, every accepted dot frame must show its own dot.
 TEST(DotScan, SynchronisationAcceptsOnlyFramesShowingTheNewPattern) {
   TempDir dir;

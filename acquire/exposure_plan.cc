@@ -34,6 +34,8 @@ bool ExposurePlanOptions::Check(std::string* error) const {
     msg << "ExposurePlanOptions::max_step_ratio = " << max_step_ratio << ": expected >= 2";
   } else if (!(probe_exposure_us >= 0) || !std::isfinite(probe_exposure_us)) {
     msg << "ExposurePlanOptions::probe_exposure_us = " << probe_exposure_us << ": expected >= 0";
+  } else if (max_longest_frames < 1 || max_longest_frames > 1000) {
+    msg << "ExposurePlanOptions::max_longest_frames = " << max_longest_frames << ": expected 1..1000";
   } else if (settle_captures < 1 || settle_captures > 20) {
     msg << "ExposurePlanOptions::settle_captures = " << settle_captures << ": expected 1..20";
   }
@@ -54,6 +56,11 @@ std::string Num(double v) {
 double EdgeExposureUs(double edge, double glow, double read_dn, double gain, double k) {
   const double b = k * k * (edge + glow) / gain;
   return (b + std::sqrt(b * b + 4 * edge * edge * k * k * read_dn * read_dn)) / (2 * edge * edge);
+}
+
+// The signal to noise of that signal in one frame of `t` us.
+double EdgeSignalToNoise(double edge, double glow, double read_dn, double gain, double t) {
+  return edge * t / std::sqrt(read_dn * read_dn + (edge + glow) * t / gain);
 }
 
 }  // namespace
@@ -92,6 +99,7 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
   double edge_us = 0;
   std::string edge_label;
   bool edge_measured_snr = false;
+  const ProbeMeasurement* dimmest = nullptr;
   for (const ProbeMeasurement& lobe : lobes) {
     if (!(lobe.peak_dn_per_us > 0)) continue;
     // A mean with its own measured signal to noise grows as sqrt(t) under shot noise.
@@ -102,6 +110,7 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
       edge_us = t;
       edge_label = lobe.label;
       edge_measured_snr = lobe.snr > 0;
+      dimmest = &lobe;
     }
   }
   if (edge_us > 0 && edge_us < longest) {
@@ -124,6 +133,23 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
   }
   if (period_us > 0) longest = std::max(1.0, std::floor(longest / period_us)) * period_us;
   longest = std::max(longest, shortest);
+  // Where the longest stops short of the edge's signal to noise, average frames there: N frames
+  // of t have sqrt(N) the signal to noise of one (shot and read noise alike).
+  if (dimmest != nullptr && edge_us > longest * (1 + 1e-9) && options.max_longest_frames > 1) {
+    const double snr = dimmest->snr > 0 ? dimmest->snr * std::sqrt(longest / dimmest->exposure_us)
+                                        : EdgeSignalToNoise(options.edge_fraction * dimmest->peak_dn_per_us, glow,
+                                                            read_dn, gain, longest);
+    const double wanted = std::ceil(Sqr(options.edge_sigmas / snr) - 1e-9);
+    plan->longest_frames = static_cast<int>(std::clamp(wanted, 1.0, static_cast<double>(options.max_longest_frames)));
+    if (plan->longest_frames > 1) {
+      longest_reason += "; " + std::to_string(plan->longest_frames) + " frames there, averaged, bring " + edge_label +
+                        " from " + Num(snr) + " to " + Num(snr * std::sqrt(plan->longest_frames)) +
+                        (edge_measured_snr ? " standard errors" : " sigma") +
+                        (wanted > options.max_longest_frames ? " (" + Num(wanted) + " frames wanted, at most " +
+                                                                   std::to_string(options.max_longest_frames) + ")"
+                                                             : std::string());
+    }
+  }
   why << "; longest " << DurationText(longest) << ": " << longest_reason;
   ExposureBracketOptions bracket;
   bracket.refresh_period_s = refresh_period_s;

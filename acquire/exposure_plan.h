@@ -47,6 +47,10 @@ struct ExposurePlanOptions {
   double min_exposure_us = 0;    // Floor of the shortest (0: one refresh period, or 1 us).
   double max_exposure_us = 1e7;  // Cap of the longest.
   double max_step_ratio = 16;
+  // Frames the plan may take at the longest exposure, averaged: where the glow (or the cap)
+  // stops the longest exposure before the dimmest lobe's edge reaches edge_sigmas, N frames
+  // raise its signal to noise by sqrt(N) whatever the noise (shot or read). 1: never.
+  int max_longest_frames = 1;
   double probe_exposure_us = 0;  // First probe exposure (0: one refresh period, or 1000 us).
   int settle_captures = 3;       // Captures per probe state; the last is measured.
   bool Check(std::string* error) const;
@@ -67,6 +71,7 @@ struct ProbeMeasurement {
 
 struct ExposurePlan {
   std::vector<double> exposures_us;  // Ascending, whole refresh periods.
+  int longest_frames = 1;            // Frames at the longest exposure (max_longest_frames).
   std::vector<ProbeMeasurement> probes;
   std::string why;  // One paragraph: which state set which end and by how much.
   // The laser plan with a flat-field source: the flat's own exposure (its brightest pixel at

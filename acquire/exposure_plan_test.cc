@@ -63,6 +63,45 @@ TEST(ExposurePlan, TheGlowLimitsTheLongestAndTheBrightestTheShortest) {
   EXPECT_EQ(plan.probes.size(), 3u);
 }
 
+// Where the glow stops the longest exposure short of the edge's sigmas, N frames there averaged
+// raise its signal to noise by sqrt(N): the plan takes the fewest that reach edge_sigmas, at most
+// max_longest_frames, and none (1) when the longest exposure alone reaches them or N is not allowed.
+TEST(ExposurePlan, FramesAtTheLongestMakeUpForTheGlowWithinTheirLimit) {
+  const double range = 4095 - 64;
+  const CameraInfo camera = Camera12Bit();
+  const ProbeMeasurement brightest = Probe("all dots", 0.5 * range / (4 * kPeriodUs));
+  const ProbeMeasurement glow = Probe("black", 0.1 * range / (100 * kPeriodUs));  // 10 % at 100 periods.
+  const ProbeMeasurement lobe = Probe("dot (1, 1)", 3e-4);                        // Edge at 2.3 sigma in one frame.
+  ExposurePlanOptions options;
+  options.max_dark_fraction = 0.1;
+  options.max_longest_frames = 1000;
+  ExposurePlan plan;
+  ASSERT_TRUE(PlanExposures(brightest, glow, {lobe}, camera, kPeriodS, options, &plan).ok());
+  const double t = plan.exposures_us.back();
+  ASSERT_NEAR(t, 100 * kPeriodUs, 1e-6);
+  const double edge = options.edge_fraction * lobe.peak_dn_per_us;
+  const double one =
+      edge * t / std::sqrt(Sqr(*camera.read_noise_dn) + (edge + glow.peak_dn_per_us) * t / camera.gain_e_per_dn);
+  ASSERT_LT(one, options.edge_sigmas);
+  const int n = plan.longest_frames;
+  EXPECT_GE(one * std::sqrt(n), options.edge_sigmas * (1 - 1e-9)) << n;
+  EXPECT_LT(one * std::sqrt(n - 1), options.edge_sigmas) << n;
+  EXPECT_NE(plan.why.find(std::to_string(n) + " frames there, averaged"), std::string::npos) << plan.why;
+  // At most max_longest_frames, saying how many were wanted.
+  options.max_longest_frames = 2;
+  ASSERT_TRUE(PlanExposures(brightest, glow, {lobe}, camera, kPeriodS, options, &plan).ok());
+  EXPECT_EQ(plan.longest_frames, 2);
+  EXPECT_NE(plan.why.find("frames wanted, at most 2"), std::string::npos) << plan.why;
+  // The default takes none, and a lobe bright enough in one frame needs none.
+  options.max_longest_frames = 1;
+  ASSERT_TRUE(PlanExposures(brightest, glow, {lobe}, camera, kPeriodS, options, &plan).ok());
+  EXPECT_EQ(plan.longest_frames, 1);
+  options.max_longest_frames = 1000;
+  ASSERT_TRUE(PlanExposures(brightest, glow, {Probe("dot (1, 1)", 40)}, camera, kPeriodS, options, &plan).ok());
+  EXPECT_EQ(plan.longest_frames, 1);
+  EXPECT_EQ(plan.why.find("averaged"), std::string::npos) << plan.why;
+}
+
 // A black display: the dimmest lobe's edge sets the longest exposure, where its signal clears
 // the asked-for sigmas (and one period shorter would not).
 TEST(ExposurePlan, WithoutGlowTheDimmestLobesEdgeSetsTheLongest) {

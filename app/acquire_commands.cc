@@ -463,14 +463,16 @@ Status CheckSimExposureStep(const SimSensorOptions& sensor) {
 
 constexpr char kPlannedExposuresKey[] = "; planned-exposures-us = ";
 constexpr char kPlannedFlatExposuresKey[] = "; planned-flat-exposures-us = ";
+constexpr char kPlannedLongestFramesKey[] = "; planned-longest-exposure-frames = ";
 
 // `--exposures-us auto` (issue #28, item 2): the bracket from a probe of the rig
 // (acquire/exposure_plan.h), appended to the plan text (session.json acquisition.plan) with the
 // reasons. A resume takes the exposures and reasons of the run it continues, without probing.
-// `flat_exposures_us` (laser sessions; nullptr: none) receives the flat field's planned exposure.
+// `flat_exposures_us` (laser sessions; nullptr: none) receives the flat field's planned exposure,
+// `longest_frames` (dot scans; nullptr: none) the frames planned at the longest exposure.
 Status PlanBracketFromProbe(const CommonOptions& common, const std::function<Status(ExposurePlan*)>& probe,
                             std::vector<double>* exposures_us, std::vector<double>* flat_exposures_us,
-                            std::string* plan) {
+                            int* longest_frames, std::string* plan) {
   std::string planned;
   if (common.resume && FileExists(JoinPath(common.out, kSessionManifestName))) {
     Session previous;
@@ -488,6 +490,18 @@ Status PlanBracketFromProbe(const CommonOptions& common, const std::function<Sta
     };
     THINSLAB_RETURN_IF_ERROR(read_list(kPlannedExposuresKey, exposures_us));
     if (flat_exposures_us != nullptr) THINSLAB_RETURN_IF_ERROR(read_list(kPlannedFlatExposuresKey, flat_exposures_us));
+    const size_t frames_at = planned.find(kPlannedLongestFramesKey);
+    if (longest_frames != nullptr && frames_at != std::string::npos) {
+      const size_t from = frames_at + std::strlen(kPlannedLongestFramesKey);
+      const std::string text = planned.substr(from, planned.find(';', from) - from);
+      char* end = nullptr;
+      const long value = std::strtol(text.c_str(), &end, 10);
+      if (end == text.c_str() || *end != '\0' || value < 1 || value > 1000) {
+        return Status::Error(common.out + "/session.json: acquisition.plan: planned-longest-exposure-frames = '" +
+                             text + "': expected a whole number in 1..1000");
+      }
+      *longest_frames = static_cast<int>(value);
+    }
   } else {
     ExposurePlan result;
     THINSLAB_RETURN_IF_ERROR(probe(&result));
@@ -505,6 +519,10 @@ Status PlanBracketFromProbe(const CommonOptions& common, const std::function<Sta
       *flat_exposures_us = result.flat_exposures_us;
       planned += kPlannedFlatExposuresKey + list(result.flat_exposures_us);
     }
+    if (longest_frames != nullptr) {
+      *longest_frames = result.longest_frames;
+      planned += kPlannedLongestFramesKey + std::to_string(result.longest_frames);
+    }
     planned += "; exposure-plan = " + why;
   }
   *plan += planned;
@@ -512,8 +530,8 @@ Status PlanBracketFromProbe(const CommonOptions& common, const std::function<Sta
   return Status::Ok();
 }
 
-Status PlanDotScanBracket(const CommonOptions& common, DotScanSessionOptions& dots, Camera* camera,
-                          Projector* projector, const SampleChanger& change, double refresh_period_s,
+Status PlanDotScanBracket(const CommonOptions& common, DotScanSessionOptions& dots, int max_longest_frames,
+                          Camera* camera, Projector* projector, const SampleChanger& change, double refresh_period_s,
                           std::string* plan) {
   return PlanBracketFromProbe(
       common,
@@ -521,6 +539,7 @@ Status PlanDotScanBracket(const CommonOptions& common, DotScanSessionOptions& do
         ExposurePlanOptions options;
         options.max_exposure_us = dots.bracket.max_exposure_us;
         options.min_exposure_us = dots.bracket.min_exposure_us;
+        options.max_longest_frames = max_longest_frames;
         // Probe dots: the grid's centre and the centres of its four quadrants.
         const std::vector<Eigen::Vector2d> grid = DotScanGrid(dots);
         std::vector<Eigen::Vector2d> probe;
@@ -533,7 +552,7 @@ Status PlanDotScanBracket(const CommonOptions& common, DotScanSessionOptions& do
         return ProbeAndPlanDotScanExposures(camera, projector, change, DotScanGridPattern(dots), probe,
                                             dots.sample_state, refresh_period_s, options, result);
       },
-      &dots.bracket.exposures_us, nullptr, plan);
+      &dots.bracket.exposures_us, nullptr, &dots.longest_exposure_frames, plan);
 }
 
 // The laser bracket from a probe: the spot through clean glass (or the sample) sets the
@@ -584,7 +603,7 @@ Status PlanLaserBracket(const CommonOptions& common, const LaserPlanText& text, 
         return ProbeAndPlanLaserExposures(camera, laser, session.capture_flat ? flat_source : nullptr, change,
                                           session.capture_clean ? "clean" : "contaminated", geometry, options, result);
       },
-      &session.exposure_times_us, &session.flat_exposure_times_us, plan);
+      &session.exposure_times_us, &session.flat_exposure_times_us, nullptr, plan);
 }
 
 int AcquireShadowMaps(int argc, char** argv, bool sim) {
@@ -642,7 +661,7 @@ int AcquireShadowMaps(int argc, char** argv, bool sim) {
           options.max_exposure_us = max_exposure_us;
           return ProbeAndPlanShadowMapExposure(camera, projector, change, options, result);
         },
-        &planned_exposure, nullptr, &plan);
+        &planned_exposure, nullptr, nullptr, &plan);
     if (planned_status.ok()) session.exposure_time_us = planned_exposure.at(0);
     return planned_status;
   };
@@ -908,6 +927,10 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   SimDisplayText sim_display;
   DotScanSessionOptions dots;
   int validation_dots = 0;  // DotScanValidationDots of the grid (dot-scan only).
+  // --exposures-us auto: at most this many frames at the longest exposure. 4 took the 0.2 %
+  // black display's 10 x 10 scan from 36 to 64 points ok (74 on a black one), 16 to 65 at four
+  // times the session time (docs/acquisition.md, "Exposure planning").
+  int max_longest_frames = 4;
   BracketSessionOptions bracket_session;
   DisplayGammaSessionOptions gamma_session;
   ExposureBracketOptions& bracket = dot_scan ? dots.bracket : gamma ? gamma_session.bracket : bracket_session.bracket;
@@ -951,6 +974,11 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
     parser.AddBool("capture-all-dots", &dots.capture_all_dots, "capture the all-dots frame without sample");
     parser.AddBool("capture-dark", &dots.capture_dark, "capture a dark bracket with the sample");
     parser.AddString("sample-state", &dots.sample_state, "sample state of the dot frames");
+    parser.AddInt("longest-exposure-frames", &dots.longest_exposure_frames,
+                  "frames of every dot and of the dark bracket at the longest exposure (averaged: a glowing display "
+                  "black's shot noise falls as 1/sqrt(frames)); with --exposures-us auto the plan chooses");
+    parser.AddInt("max-longest-exposure-frames", &max_longest_frames,
+                  "--exposures-us auto: most frames the plan may take at the longest exposure");
     if (sim) {
       parser.AddBool("sim-sample", &sim_sample, "put the region sample of `thinslab sim dot-scan` in the simulated "
                                                 "light path (Monte Carlo tables; writes ground_truth/)");
@@ -972,6 +1000,15 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   const bool plan_exposures = dot_scan && exposures == "auto";
   if (status.ok() && !exposures.empty() && !plan_exposures) {
     status = ParseExposureList(exposures, "exposures-us", &bracket.exposures_us);
+  }
+  if (status.ok() && plan_exposures && dots.longest_exposure_frames != 1) {
+    status = Status::Error(
+        "thinslab acquire dot-scan: option --longest-exposure-frames: with --exposures-us auto the "
+        "plan chooses the frames (within --max-longest-exposure-frames); give one or the other");
+  }
+  if (status.ok() && dot_scan && (max_longest_frames < 1 || max_longest_frames > 1000)) {
+    status = Status::Error("thinslab acquire dot-scan: option --max-longest-exposure-frames = " +
+                           std::to_string(max_longest_frames) + ": expected 1..1000");
   }
   if (status.ok() && sim) status = ApplySimDisplay(sim_display, &monitor);
   if (status.ok() && gamma && !common.gamma_table.empty()) {
@@ -1057,7 +1094,8 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   if (!checked) return CommandFailed(Status::Error(error));
   // After the checks: the probe's dots come from the grid.
   if (plan_exposures) {
-    status = PlanDotScanBracket(common, dots, camera, &projector, change, display->refresh_period_s(), &plan);
+    status = PlanDotScanBracket(common, dots, max_longest_frames, camera, &projector, change,
+                                display->refresh_period_s(), &plan);
     if (!status.ok()) return CommandFailed(status);
   }
   const double period = display->refresh_period_s();
