@@ -3,7 +3,8 @@
 # The exposure-planning measurement of docs/acquisition.md ("Exposure planning"): a 10 x 10 dot
 # scan of the simulated nine-region sample on the linear display, black 0 with the fixed bracket,
 # 0.2 % black with the fixed bracket and with --exposures-us auto; each fitted at a 4 mm map
-# with held-out dots. Usage: bash scripts/exposure_plan_compare.sh OUTDIR (about 2 minutes).
+# with held-out dots (the planned run also plans its frames at the longest exposure, 4 here).
+# Usage: bash scripts/exposure_plan_compare.sh OUTDIR (about 1 minute).
 set -euo pipefail
 out=${1:?usage: exposure_plan_compare.sh OUTDIR}
 T=${THINSLAB:-build/app/thinslab}
