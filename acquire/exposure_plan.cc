@@ -58,6 +58,38 @@ double EdgeExposureUs(double edge, double glow, double read_dn, double gain, dou
   return (b + std::sqrt(b * b + 4 * edge * edge * k * k * read_dn * read_dn)) / (2 * edge * edge);
 }
 
+// Exposures from `shortest` to `longest`, geometric, at most `max_step_ratio` apart, whole
+// refresh periods; says how many in `why`.
+std::vector<double> GeometricBracket(double shortest, double longest, double max_step_ratio, double refresh_period_s,
+                                     std::ostringstream* why) {
+  ExposureBracketOptions bracket;
+  bracket.refresh_period_s = refresh_period_s;
+  if (longest <= shortest * (1 + 1e-9)) {
+    bracket.exposures_us = {shortest};
+  } else {
+    const int steps = static_cast<int>(std::ceil(std::log(longest / shortest) / std::log(max_step_ratio) - 1e-9)) + 1;
+    for (int k = 0; k < steps; ++k) {
+      bracket.exposures_us.push_back(shortest * std::pow(longest / shortest, static_cast<double>(k) / (steps - 1)));
+    }
+    *why << "; " << steps << " exposures at most " << Num(max_step_ratio) << "x apart";
+  }
+  return PlanExposureBracket(bracket);
+}
+
+// A brightest state that saturates even in the shortest probe exposure (one refresh period of
+// the display, or 1 us) saturates in every exposure a session could take: those pixels would be
+// lost in every frame, so the plan refuses before the session instead of planning from a lower
+// bound.
+Status CheckBrightestUnsaturated(const ProbeMeasurement& brightest, double refresh_period_s) {
+  if (!brightest.saturated) return Status::Ok();
+  return Status::Error("exposure probe: " + brightest.label + " saturates even at " +
+                       DurationText(brightest.exposure_us) +
+                       (refresh_period_s > 0 ? ", one refresh period of the display, the shortest exposure a frame can "
+                                               "have: dim the display"
+                                             : ", the shortest exposure tried: dim the light") +
+                       ", close the lens aperture or add a neutral-density filter (or give a fixed --exposures-us)");
+}
+
 // The signal to noise of that signal in one frame of `t` us.
 double EdgeSignalToNoise(double edge, double glow, double read_dn, double gain, double t) {
   return edge * t / std::sqrt(read_dn * read_dn + (edge + glow) * t / gain);
@@ -79,6 +111,7 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
     return Status::Error("exposure probe: the brightest state (" + brightest.label +
                          ") shows no light: is the display on and in the camera's view?");
   }
+  THINSLAB_RETURN_IF_ERROR(CheckBrightestUnsaturated(brightest, refresh_period_s));
   const double period_us = refresh_period_s > 0 ? refresh_period_s * 1e6 : 0;
   const double floor_us = std::max(options.min_exposure_us, period_us > 0 ? period_us : 1.0);
   std::ostringstream why;
@@ -88,8 +121,7 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
   if (period_us > 0) shortest = std::max(1.0, std::floor(shortest / period_us)) * period_us;
   why << "shortest " << DurationText(shortest) << ": " << brightest.label << " peaks at "
       << Num(brightest.peak_dn_per_us) << " DN/us"
-      << (brightest.saturated ? " (at least: saturated in the shortest probe)" : "") << ", "
-      << Num(100 * brightest.peak_dn_per_us * shortest / range) << " % of the range there";
+      << ", " << Num(100 * brightest.peak_dn_per_us * shortest / range) << " % of the range there";
   // Longest: the dimmest lobe's edge above the noise, the glow below its limit, the cap.
   const double gain = camera.gain_e_per_dn > 0 ? camera.gain_e_per_dn : 1.0;
   const double read_dn = camera.read_noise_dn.value_or(2.0);
@@ -115,10 +147,12 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
   }
   if (edge_us > 0 && edge_us < longest) {
     longest = edge_us;
-    longest_reason = edge_measured_snr ? edge_label + " at " + Num(options.edge_sigmas) + " standard errors"
-                                       : "the edge (" + Num(100 * options.edge_fraction) +
-                                             " % of the peak) of the dimmest probed lobe, " + edge_label + ", at " +
-                                             Num(options.edge_sigmas) + " sigma";
+    longest_reason =
+        edge_measured_snr ? edge_label + " at " + Num(options.edge_sigmas) + " standard errors"
+        : options.edge_fraction < 1
+            ? "the edge (" + Num(100 * options.edge_fraction) + " % of the peak) of the dimmest probed lobe, " +
+                  edge_label + ", at " + Num(options.edge_sigmas) + " sigma"
+            : "the dimmest probed signal, " + edge_label + ", at " + Num(options.edge_sigmas) + " sigma in one pixel";
   } else if (edge_us > longest) {
     longest_reason += "; " + edge_label + " would need " + DurationText(edge_us) + " for " + Num(options.edge_sigmas) +
                       (edge_measured_snr ? " standard errors" : " sigma");
@@ -151,19 +185,7 @@ Status PlanExposures(const ProbeMeasurement& brightest, const ProbeMeasurement& 
     }
   }
   why << "; longest " << DurationText(longest) << ": " << longest_reason;
-  ExposureBracketOptions bracket;
-  bracket.refresh_period_s = refresh_period_s;
-  if (longest <= shortest * (1 + 1e-9)) {
-    bracket.exposures_us = {shortest};
-  } else {
-    const int steps =
-        static_cast<int>(std::ceil(std::log(longest / shortest) / std::log(options.max_step_ratio) - 1e-9)) + 1;
-    for (int k = 0; k < steps; ++k) {
-      bracket.exposures_us.push_back(shortest * std::pow(longest / shortest, static_cast<double>(k) / (steps - 1)));
-    }
-    why << "; " << steps << " exposures at most " << Num(options.max_step_ratio) << "x apart";
-  }
-  plan->exposures_us = PlanExposureBracket(bracket);
+  plan->exposures_us = GeometricBracket(shortest, longest, options.max_step_ratio, refresh_period_s, &why);
   plan->probes.push_back(brightest);
   plan->probes.push_back(black);
   plan->probes.insert(plan->probes.end(), lobes.begin(), lobes.end());
@@ -180,9 +202,9 @@ class Prober {
       : camera_(camera), options_(options), period_us_(refresh_period_s * 1e6) {}
 
   // `show` puts the rig in the state; `bright`: the brightest pixel (else the 99th percentile);
-  // starting at `start_us`.
+  // starting at `start_us`. `frame` (may be nullptr): the measured frame's raw DN.
   Status Measure(const std::string& label, const std::function<Status()>& show, bool bright, double start_us,
-                 ProbeMeasurement* m) {
+                 ProbeMeasurement* m, Image* frame_out = nullptr) {
     *m = ProbeMeasurement();
     m->label = label;
     THINSLAB_RETURN_IF_ERROR(show().WithContext("exposure probe: " + label));
@@ -210,6 +232,7 @@ class Prober {
       m->exposure_us = frame.exposure_time_us > 0 ? frame.exposure_time_us : applied;
       m->peak_dn_per_us = std::max(level, 0.0) / m->exposure_us;
       m->saturated = level >= 0.9 * range;
+      if (frame_out != nullptr) *frame_out = raw;
       if (m->saturated && t > shortest) {
         shortened = true;
         t = std::max(shortest, period_us_ > 0 ? std::floor(t / 2 / period_us_) * period_us_ : t / 2);
@@ -448,11 +471,11 @@ Status ProbeAndPlanShadowMapExposure(Camera* camera, Projector* projector, const
   double t = 0;
   THINSLAB_RETURN_IF_ERROR(ProbeFillExposure(&prober, "the flat field through clean glass", state("flat"), probe_us,
                                              "the projector", range, period_us, options, &reference, &t));
+  THINSLAB_RETURN_IF_ERROR(CheckBrightestUnsaturated(reference, projector->refresh_period_s()));
   THINSLAB_RETURN_IF_ERROR(prober.Measure("the projector off", state(""), false, t, &dark));
   std::ostringstream why;
   why << "exposure " << DurationText(t) << ": " << reference.label << " peaks at " << Num(reference.peak_dn_per_us)
-      << " DN/us" << (reference.saturated ? " (at least: saturated in the shortest probe)" : "") << ", "
-      << Num(100 * reference.peak_dn_per_us * t / range) << " % of the range there";
+      << " DN/us, " << Num(100 * reference.peak_dn_per_us * t / range) << " % of the range there";
   const double dark_fill = dark.peak_dn_per_us * t / range;
   if (dark_fill > options.max_dark_fraction) {
     why << "; the projector-off frame already fills " << Num(100 * dark_fill) << " % of the range: darken the room";
@@ -461,6 +484,141 @@ Status ProbeAndPlanShadowMapExposure(Camera* camera, Projector* projector, const
   plan->probes = {reference, dark};
   plan->why = why.str();
   return Status::Ok();
+}
+
+bool ResponseBracketPlanOptions::Check(std::string* error) const {
+  std::ostringstream msg;
+  if (!(low_fill > 0 && low_fill < high_fill && high_fill <= 1)) {
+    msg << "ResponseBracketPlanOptions::low_fill, high_fill = " << low_fill << ", " << high_fill
+        << ": expected 0 < low_fill < high_fill <= 1";
+  } else if (!(dimmest_quantile >= 0 && dimmest_quantile < 1)) {
+    msg << "ResponseBracketPlanOptions::dimmest_quantile = " << dimmest_quantile << ": expected in [0, 1)";
+  } else if (!(max_step_ratio > 1) || !std::isfinite(max_step_ratio)) {
+    msg << "ResponseBracketPlanOptions::max_step_ratio = " << max_step_ratio << ": expected > 1";
+  }
+  *error = msg.str();
+  return error->empty();
+}
+
+Status PlanResponseBracket(const ProbeMeasurement& brightest, const ProbeMeasurement& dimmest, const CameraInfo& camera,
+                           double refresh_period_s, const ExposurePlanOptions& options,
+                           const ResponseBracketPlanOptions& response, ExposurePlan* plan) {
+  *plan = ExposurePlan();
+  std::string error;
+  if (!options.Check(&error) || !response.Check(&error)) return Status::Error(error);
+  const double range = camera.saturation_dn - camera.black_level_dn;
+  if (!(range > 0) || !std::isfinite(range)) {
+    return Status::Error("PlanResponseBracket: camera '" + camera.id +
+                         "' has no finite saturation level to plan against");
+  }
+  if (!(brightest.peak_dn_per_us > 0) || !(dimmest.peak_dn_per_us > 0)) {
+    return Status::Error("exposure probe: " + brightest.label +
+                         " shows no light: is the display on and in the camera's view?");
+  }
+  THINSLAB_RETURN_IF_ERROR(CheckBrightestUnsaturated(brightest, refresh_period_s));
+  const double period_us = refresh_period_s > 0 ? refresh_period_s * 1e6 : 0;
+  auto whole_periods = [period_us](double t) {
+    return period_us > 0 ? std::max(1.0, std::round(t / period_us)) * period_us : std::max(t, 1.0);
+  };
+  std::ostringstream why;
+  why << std::setprecision(3);
+  double shortest = std::max(options.min_exposure_us, response.low_fill * range / brightest.peak_dn_per_us);
+  shortest = whole_periods(std::min(shortest, options.max_exposure_us));
+  why << "shortest " << DurationText(shortest) << ": " << brightest.label << " peaks at "
+      << Num(brightest.peak_dn_per_us) << " DN/us, " << Num(100 * brightest.peak_dn_per_us * shortest / range)
+      << " % of the range there (the response's low end; aimed at " << Num(100 * response.low_fill) << " %)";
+  double longest = response.high_fill * range / dimmest.peak_dn_per_us;
+  std::string capped;
+  if (longest > options.max_exposure_us) {
+    longest = options.max_exposure_us;
+    capped = " (capped by the longest allowed, " + DurationText(options.max_exposure_us) + ")";
+  }
+  longest = std::max(shortest, whole_periods(longest));
+  why << "; longest " << DurationText(longest) << ": " << dimmest.label << " at " << Num(dimmest.peak_dn_per_us)
+      << " DN/us reach " << Num(100 * dimmest.peak_dn_per_us * longest / range) << " % of the range there" << capped
+      << " (the response's high end; aimed at " << Num(100 * response.high_fill) << " %)";
+  plan->exposures_us = GeometricBracket(shortest, longest, response.max_step_ratio, refresh_period_s, &why);
+  plan->probes = {brightest, dimmest};
+  plan->why = why.str();
+  return Status::Ok();
+}
+
+Status ProbeAndPlanResponseBracket(Camera* camera, Projector* projector, const SampleChanger& change_sample,
+                                   const std::string& pattern, const ExposurePlanOptions& options,
+                                   const ResponseBracketPlanOptions& response, ExposurePlan* plan) {
+  *plan = ExposurePlan();
+  std::string error;
+  if (!options.Check(&error) || !response.Check(&error)) return Status::Error("exposure probe: " + error);
+  const double period_s = projector->refresh_period_s();
+  const double probe_us = options.probe_exposure_us > 0 ? options.probe_exposure_us
+                          : period_s > 0                ? period_s * 1e6
+                                                        : 1000;
+  Prober prober(camera, options, period_s);
+  THINSLAB_RETURN_IF_ERROR(change_sample("none"));
+  ProbeMeasurement brightest, dimmest;
+  Image frame;
+  const std::string label = "the '" + pattern + "' pattern";
+  THINSLAB_RETURN_IF_ERROR(prober.Measure(
+      label + "'s brightest pixel", [&]() { return projector->ShowPattern(pattern); }, true, probe_us, &brightest,
+      &frame));
+  // The dimmest lit pixels: a low quantile of the pixels above a tenth of the brightest (the
+  // unlit rest of the view has no response to calibrate).
+  const double black = camera->info().black_level_dn;
+  const double peak_dn = brightest.peak_dn_per_us * brightest.exposure_us;
+  std::vector<float> lit;
+  for (float v : frame.data()) {
+    if (v - black > 0.1 * peak_dn) lit.push_back(static_cast<float>(v - black));
+  }
+  dimmest = brightest;
+  dimmest.label = label + "'s dimmest lit pixels (" + Num(100 * response.dimmest_quantile) + "th percentile)";
+  dimmest.peak_dn_per_us = lit.empty() ? 0 : Quantile(lit, response.dimmest_quantile) / brightest.exposure_us;
+  THINSLAB_RETURN_IF_ERROR(projector->ShowPattern(""));
+  return PlanResponseBracket(brightest, dimmest, camera->info(), period_s, options, response, plan);
+}
+
+Status ProbeAndPlanDisplayGammaExposures(Camera* camera, Projector* projector, const SampleChanger& change_sample,
+                                         int steps, const ExposurePlanOptions& options, ExposurePlan* plan) {
+  *plan = ExposurePlan();
+  std::string error;
+  if (!options.Check(&error)) return Status::Error("exposure probe: " + error);
+  if (steps < 2 || steps > 255) {
+    return Status::Error("exposure probe: display gamma steps = " + std::to_string(steps) + ": expected 2..255");
+  }
+  const double period_s = projector->refresh_period_s();
+  const double probe_us = options.probe_exposure_us > 0 ? options.probe_exposure_us
+                          : period_s > 0                ? period_s * 1e6
+                                                        : 1000;
+  Prober prober(camera, options, period_s);
+  auto show = [projector](const std::string& pattern) {
+    return [projector, pattern]() { return projector->ShowPattern(pattern); };
+  };
+  THINSLAB_RETURN_IF_ERROR(change_sample("none"));
+  ProbeMeasurement brightest, black, first;
+  Image full_frame, black_frame, first_frame;
+  THINSLAB_RETURN_IF_ERROR(
+      prober.Measure("level 1", show(FlatPatternId(1.0)), true, probe_us, &brightest, &full_frame));
+  // Level 1/steps is ~(1/steps)^2.2 of level 1 on a gamma 2.2 display: probed long, like the black.
+  const double long_us = std::min(64 * probe_us, options.max_exposure_us);
+  THINSLAB_RETURN_IF_ERROR(
+      prober.Measure("the display black", show(FlatPatternId(0.0)), false, long_us, &black, &black_frame));
+  std::ostringstream level;
+  level << "level 1/" << steps;
+  THINSLAB_RETURN_IF_ERROR(prober.Measure(level.str() + " above black", show(FlatPatternId(1.0 / steps)), false,
+                                          long_us, &first, &first_frame));
+  THINSLAB_RETURN_IF_ERROR(projector->ShowPattern(""));
+  // The signal of the first level, per pixel of the lit region: its rate less the black's.
+  const double black_dn = camera->info().black_level_dn;
+  const float threshold = 0.5f * static_cast<float>(Quantile(full_frame.data(), 0.99) - black_dn);
+  std::vector<float> signal;
+  for (size_t i = 0; i < full_frame.data().size(); ++i) {
+    if (full_frame.data()[i] - black_dn <= threshold) continue;
+    signal.push_back(static_cast<float>((first_frame.data()[i] - black_dn) / first.exposure_us -
+                                        (black_frame.data()[i] - black_dn) / black.exposure_us));
+  }
+  first.peak_dn_per_us = signal.empty() ? 0 : std::max(0.0, Median(signal));
+  ExposurePlanOptions gamma = options;
+  gamma.edge_fraction = 1;  // The level itself is the signal of interest.
+  return PlanExposures(brightest, black, {first}, camera->info(), period_s, gamma, plan);
 }
 
 }  // namespace thinslab

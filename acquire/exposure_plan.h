@@ -122,6 +122,40 @@ Status ProbeAndPlanLaserExposures(Camera* camera, Laser* laser, Projector* flat_
                                   const LaserProbeGeometry& geometry, const ExposurePlanOptions& options,
                                   ExposurePlan* plan);
 
+// The exposure bracket for the camera's response (`acquire bracket`, kind "exposure_bracket";
+// calib/response_recovery.h): the response is recovered where the frames' values fall, and the
+// recovery's hat weights vanish outside [5 %, 95 %] of the range. So the shortest exposure puts
+// the pattern's brightest pixel at `low_fill` of the range (the curve's low end is seen) and the
+// longest its dimmest lit pixels (`dimmest_quantile` of the pixels above a tenth of the
+// brightest) at `high_fill` (every lit pixel reaches its high end); exposures at most
+// `max_step_ratio` apart (one stop: neighbouring exposures see each pixel at overlapping values),
+// whole refresh periods, within the options' min..max_exposure_us.
+struct ResponseBracketPlanOptions {
+  double low_fill = 0.05;
+  double high_fill = 0.95;
+  double dimmest_quantile = 0.05;
+  double max_step_ratio = 2;
+  bool Check(std::string* error) const;
+};
+// Pure: from the brightest pixel's and the dimmest lit pixels' rates [DN/us].
+Status PlanResponseBracket(const ProbeMeasurement& brightest, const ProbeMeasurement& dimmest, const CameraInfo& camera,
+                           double refresh_period_s, const ExposurePlanOptions& options,
+                           const ResponseBracketPlanOptions& response, ExposurePlan* plan);
+// The probe on the devices: `pattern` without the sample (its brightest pixel and its dimmest lit
+// pixels in one unsaturated frame), then PlanResponseBracket. Leaves the display black.
+Status ProbeAndPlanResponseBracket(Camera* camera, Projector* projector, const SampleChanger& change_sample,
+                                   const std::string& pattern, const ExposurePlanOptions& options,
+                                   const ResponseBracketPlanOptions& response, ExposurePlan* plan);
+
+// The display gamma session's bracket (`acquire gamma`; acquire/display_gamma_session.h): its
+// brightest state, level 1, at `options.peak_fill` of the range in the shortest exposure; its
+// dimmest signal, the first level above black (1/steps) less the display black, at
+// `options.edge_sigmas` sigma in one pixel of the lit region (the pixels above half of level 1's
+// 99th percentile, as calib gamma's region) in the longest; the black below max_dark_fraction
+// (PlanExposures with edge_fraction 1). Leaves the display black.
+Status ProbeAndPlanDisplayGammaExposures(Camera* camera, Projector* projector, const SampleChanger& change_sample,
+                                         int steps, const ExposurePlanOptions& options, ExposurePlan* plan);
+
 // The shadow-map session's one exposure (Gu et al. 2007, Sec. 5.1): its brightest state, the
 // flat field through clean glass, at `options.peak_fill` of the range in its brightest pixel
 // (whole refresh periods of the projector, within min..max_exposure_us); the projector-off

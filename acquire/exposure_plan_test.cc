@@ -102,6 +102,57 @@ TEST(ExposurePlan, FramesAtTheLongestMakeUpForTheGlowWithinTheirLimit) {
   EXPECT_EQ(plan.why.find("averaged"), std::string::npos) << plan.why;
 }
 
+// The response bracket: the brightest pixel at 5 % of the range in the shortest exposure, the
+// dimmest lit pixels at 95 % in the longest, one stop apart, whole refresh periods; the cap is
+// said when it stops the longest short.
+TEST(ExposurePlan, TheResponseBracketSpansTheWeightedRangeOneStopApart) {
+  const double range = 4095 - 64;
+  ProbeMeasurement brightest = Probe("the pattern's brightest pixel", 0.5 * range / (100 * kPeriodUs));
+  ProbeMeasurement dimmest = Probe("the pattern's dimmest lit pixels", 0.25 * range / (100 * kPeriodUs));
+  ExposurePlan plan;
+  const ResponseBracketPlanOptions response;
+  ASSERT_TRUE(
+      PlanResponseBracket(brightest, dimmest, Camera12Bit(), kPeriodS, ExposurePlanOptions(), response, &plan).ok());
+  ASSERT_GE(plan.exposures_us.size(), 2u);
+  EXPECT_TRUE(WholePeriods(plan.exposures_us));
+  EXPECT_NEAR(plan.exposures_us.front(), 10 * kPeriodUs, 1e-6);  // 0.05 / 0.5 of 100 periods.
+  EXPECT_NEAR(plan.exposures_us.back(), 380 * kPeriodUs, 1e-6);  // 0.95 / 0.25 of 100 periods.
+  for (size_t k = 1; k < plan.exposures_us.size(); ++k) {
+    EXPECT_LE(plan.exposures_us[k] / plan.exposures_us[k - 1], 2 * (1 + 1.0 / 60)) << "step " << k;
+  }
+  EXPECT_NE(plan.why.find("the response's low end"), std::string::npos) << plan.why;
+  // The cap stops the longest: said, and the bracket ends there.
+  ExposurePlanOptions capped;
+  capped.max_exposure_us = 200 * kPeriodUs;
+  ASSERT_TRUE(PlanResponseBracket(brightest, dimmest, Camera12Bit(), kPeriodS, capped, response, &plan).ok());
+  EXPECT_NEAR(plan.exposures_us.back(), 200 * kPeriodUs, 1e-6);
+  EXPECT_NE(plan.why.find("capped"), std::string::npos) << plan.why;
+  // No light is an error naming the state.
+  dimmest.peak_dn_per_us = 0;
+  const Status dark =
+      PlanResponseBracket(brightest, dimmest, Camera12Bit(), kPeriodS, ExposurePlanOptions(), response, &plan);
+  EXPECT_FALSE(dark.ok());
+  EXPECT_NE(dark.message().find("the pattern's brightest pixel"), std::string::npos) << dark.message();
+}
+
+// A brightest state that saturates even in the shortest probe (one refresh period) would
+// saturate in every frame of the session: refused, naming the state and the remedy.
+TEST(ExposurePlan, ABrightestStateSaturatedAtTheShortestExposureIsRefused) {
+  const double range = 4095 - 64;
+  ProbeMeasurement brightest = Probe("level 1", 2 * range / kPeriodUs);
+  brightest.saturated = true;
+  ExposurePlan plan;
+  const Status status =
+      PlanExposures(brightest, Probe("black", 0), {}, Camera12Bit(), kPeriodS, ExposurePlanOptions(), &plan);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("level 1 saturates even at 11.76 ms, one refresh period"), std::string::npos)
+      << status.message();
+  EXPECT_NE(status.message().find("neutral-density"), std::string::npos) << status.message();
+  const Status response = PlanResponseBracket(brightest, Probe("dimmest", range / kPeriodUs), Camera12Bit(), kPeriodS,
+                                              ExposurePlanOptions(), ResponseBracketPlanOptions(), &plan);
+  EXPECT_FALSE(response.ok());
+}
+
 // A black display: the dimmest lobe's edge sets the longest exposure, where its signal clears
 // the asked-for sigmas (and one period shorter would not).
 TEST(ExposurePlan, WithoutGlowTheDimmestLobesEdgeSetsTheLongest) {

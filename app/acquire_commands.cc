@@ -555,6 +555,22 @@ Status PlanDotScanBracket(const CommonOptions& common, DotScanSessionOptions& do
       &dots.bracket.exposures_us, nullptr, &dots.longest_exposure_frames, plan);
 }
 
+// `acquire bracket|gamma --exposures-us auto`: the bracket from `probe` (the response bracket of
+// ProbeAndPlanResponseBracket, or ProbeAndPlanDisplayGammaExposures) within min..max_exposure_us.
+using CalibrationProbe = std::function<Status(const ExposurePlanOptions& options, ExposurePlan* plan)>;
+Status PlanCalibrationBracket(const CommonOptions& common, const CalibrationProbe& probe, double min_exposure_us,
+                              double max_exposure_us, ExposureBracketOptions* bracket, std::string* plan) {
+  return PlanBracketFromProbe(
+      common,
+      [&](ExposurePlan* result) {
+        ExposurePlanOptions options;
+        options.min_exposure_us = min_exposure_us;
+        options.max_exposure_us = max_exposure_us;
+        return probe(options, result);
+      },
+      &bracket->exposures_us, nullptr, nullptr, plan);
+}
+
 // The laser bracket from a probe: the spot through clean glass (or the sample) sets the
 // shortest, the lobe's ring at the fit's outermost angle the longest. The ring is found through
 // the camera's pose: the simulated rig's, or a calibrated capture's (`--plan-rig`).
@@ -861,8 +877,8 @@ int AcquireLaser(int argc, char** argv, bool sim) {
 // Options shared by dot-scan and bracket: the bracket and the synchronisation rule.
 void AddBracketOptions(OptionParser* parser, ExposureBracketOptions* bracket, std::string* exposures) {
   parser->AddString("exposures-us", exposures,
-                    "exposures, comma-separated [us] (default: geometric min..max); dot-scan: auto = planned from a "
-                    "probe of the rig within min..max");
+                    "exposures, comma-separated [us] (default: geometric min..max); auto = planned from a probe of "
+                    "the rig within min..max (bracket, gamma: one refresh period .. 10 s unless given)");
   parser->AddDouble("min-exposure-us", &bracket->min_exposure_us, "shortest exposure of the geometric bracket [us]");
   parser->AddDouble("max-exposure-us", &bracket->max_exposure_us, "longest exposure of the geometric bracket [us]");
   parser->AddInt("exposure-steps", &bracket->steps, "exposures in the geometric bracket");
@@ -997,7 +1013,11 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   int exit_code = 0;
   if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   Status status;
-  const bool plan_exposures = dot_scan && exposures == "auto";
+  const bool plan_exposures = exposures == "auto";
+  // bracket and gamma plan within the bracket options only where given (their defaults are the
+  // fixed bracket's ends): else from one refresh period to 10 s.
+  const double plan_min_us = parser.IsSet("min-exposure-us") ? bracket.min_exposure_us : 0;
+  const double plan_max_us = parser.IsSet("max-exposure-us") ? bracket.max_exposure_us : 1e7;
   if (status.ok() && !exposures.empty() && !plan_exposures) {
     status = ParseExposureList(exposures, "exposures-us", &bracket.exposures_us);
   }
@@ -1094,8 +1114,22 @@ int AcquireDisplaySession(int argc, char** argv, bool sim, DisplayKind which) {
   if (!checked) return CommandFailed(Status::Error(error));
   // After the checks: the probe's dots come from the grid.
   if (plan_exposures) {
-    status = PlanDotScanBracket(common, dots, max_longest_frames, camera, &projector, change,
-                                display->refresh_period_s(), &plan);
+    status = dot_scan ? PlanDotScanBracket(common, dots, max_longest_frames, camera, &projector, change,
+                                           display->refresh_period_s(), &plan)
+             : gamma  ? PlanCalibrationBracket(
+                            common,
+                            [&](const ExposurePlanOptions& options, ExposurePlan* result) {
+                             return ProbeAndPlanDisplayGammaExposures(camera, &projector, change, gamma_session.steps,
+                                                                       options, result);
+                           },
+                            plan_min_us, plan_max_us, &gamma_session.bracket, &plan)
+                     : PlanCalibrationBracket(
+                           common,
+                           [&](const ExposurePlanOptions& options, ExposurePlan* result) {
+                             return ProbeAndPlanResponseBracket(camera, &projector, change, bracket_session.pattern,
+                                                                options, ResponseBracketPlanOptions(), result);
+                           },
+                           plan_min_us, plan_max_us, &bracket_session.bracket, &plan);
     if (!status.ok()) return CommandFailed(status);
   }
   const double period = display->refresh_period_s();

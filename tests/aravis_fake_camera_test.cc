@@ -128,6 +128,17 @@ double StatOrZero(const std::map<std::string, double>& stats, const std::string&
   return it == stats.end() ? 0 : it->second;
 }
 
+// A private X server for the SDL window of `--display 0`, made the process's DISPLAY.
+void StartXvfbForTheWindow(int width, int height, XvfbServer* xvfb) {
+  std::string error;
+  ASSERT_TRUE(xvfb->Start(width, height, &error)) << error;
+  setenv("DISPLAY", xvfb->display().c_str(), 1);
+#ifdef __SANITIZE_ADDRESS__
+  setenv("SDL_RENDER_DRIVER", "software", 1);  // No Mesa GL under LeakSanitizer (pattern_window_test).
+  setenv("SDL_FRAMEBUFFER_ACCELERATION", "0", 1);
+#endif
+}
+
 TEST(AravisFakeCamera, OpensByIpAndDeliversTheInjectedMono16ImageExactly) {
   PatternSource source(65535);
   std::unique_ptr<AravisFakeCamera> fake;
@@ -247,13 +258,7 @@ TEST(AravisFakeCamera, AcquireCommandSetsPixelFormatGainAndPacketSize) {
   }
 
   XvfbServer xvfb;
-  std::string error;
-  ASSERT_TRUE(xvfb.Start(320, 240, &error)) << error;
-  setenv("DISPLAY", xvfb.display().c_str(), 1);
-#ifdef __SANITIZE_ADDRESS__
-  setenv("SDL_RENDER_DRIVER", "software", 1);  // No Mesa GL under LeakSanitizer (pattern_window_test).
-  setenv("SDL_FRAMEBUFFER_ACCELERATION", "0", 1);
-#endif
+  ASSERT_NO_FATAL_FAILURE(StartXvfbForTheWindow(320, 240, &xvfb));
   // The operator confirms the sample state (none: nothing in the light path) with Enter.
   const std::string enter = dir / "enter.txt";
   ASSERT_TRUE(WriteFileAtomically(enter, "\n\n").ok());
@@ -804,13 +809,7 @@ TEST(AravisFakeCamera, PreviewShowsTheLiveImageWithSaturationHistogramAndFocus) 
   std::unique_ptr<AravisFakeCamera> fake;
   ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), source, &fake).ok());
   XvfbServer xvfb;
-  std::string error;
-  ASSERT_TRUE(xvfb.Start(1280, 1024, &error)) << error;
-  setenv("DISPLAY", xvfb.display().c_str(), 1);
-#ifdef __SANITIZE_ADDRESS__
-  setenv("SDL_RENDER_DRIVER", "software", 1);
-  setenv("SDL_FRAMEBUFFER_ACCELERATION", "0", 1);
-#endif
+  ASSERT_NO_FATAL_FAILURE(StartXvfbForTheWindow(1280, 1024, &xvfb));
   TempDir dir;
   const std::string snapshot = dir / "preview.png";
   const RunResult r = RunThinslab("acquire preview --camera aravis:" + fake->address() +
@@ -846,6 +845,59 @@ TEST(AravisFakeCamera, PreviewShowsTheLiveImageWithSaturationHistogramAndFocus) 
   EXPECT_GT(white, 10);
   // Focus bar: a steady scene is at its best focus, full length.
   EXPECT_EQ(shown.at<cv::Vec3b>(frame_height + 68, width - 2), cv::Vec3b(0, 200, 255));
+}
+
+// `acquire bracket --exposures-us auto` (issue #28, item 2) through the GigE Vision stack and the
+// SDL window under Xvfb: the probe measures the pattern through the fake camera, whose frames
+// are a still ramp scene lit in proportion to the exposure it was set to, and the planned
+// bracket puts the brightest pixel near 5 % of the range in its shortest exposure and the dimmest
+// lit pixels near 95 % in its longest (the response recovery's weighted range), one stop apart.
+constexpr double kRampRange = 65535, kRampPeakDnPerUs = 0.164;  // The brightest pixel at 5 % in 20 ms.
+
+TEST(AravisFakeCamera, ResponseBracketIsPlannedFromAProbeThroughTheCamera) {
+  AravisFakeFrameSource ramp = [](const AravisFakeFrameRequest& request, Image* raw_dn) {
+    *raw_dn = Image(request.width_px, request.height_px);
+    for (int y = 0; y < request.height_px; ++y) {
+      for (int x = 0; x < request.width_px; ++x) {
+        const double rate = kRampPeakDnPerUs * (0.5 + 0.5 * x / (request.width_px - 1.0));
+        raw_dn->at(x, y) = static_cast<float>(std::min(kRampRange, rate * request.exposure_time_us));
+      }
+    }
+    return Status::Ok();
+  };
+  std::unique_ptr<AravisFakeCamera> fake;
+  ASSERT_TRUE(AravisFakeCamera::Start(AravisFakeCameraOptions(), ramp, &fake).ok());
+  XvfbServer xvfb;
+  ASSERT_NO_FATAL_FAILURE(StartXvfbForTheWindow(320, 240, &xvfb));
+  TempDir dir;
+  const std::string enter = dir / "enter.txt";
+  ASSERT_TRUE(WriteFileAtomically(enter, "\n\n\n\n").ok());
+  const RunResult r = RunThinslab("acquire bracket --camera aravis:" + fake->address() +
+                                      " --camera-timeout-s 2 --quiet --display 0 --pixel-format Mono16"
+                                      " --exposures-us auto --capture-dark false " +
+                                      dir / "s",
+                                  enter);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("exposure plan: planned-exposures-us = "), std::string::npos) << r.output;
+  Session session;
+  ASSERT_TRUE(ReadSession(dir / "s", &session).ok());
+  EXPECT_NE(session.acquisition.plan.find("the response's high end"), std::string::npos) << session.acquisition.plan;
+  const auto frames = session.UsableFrames("bracket");
+  ASSERT_GE(frames.size(), 3u);
+  for (size_t k = 1; k < frames.size(); ++k) {
+    EXPECT_LE(frames[k]->exposure_time_us / frames[k - 1]->exposure_time_us, 2.2) << "frame " << k;
+  }
+  Image shortest, longest;
+  ASSERT_TRUE(LoadFrame(dir / "s", session, *frames.front(), &shortest).ok());
+  ASSERT_TRUE(LoadFrame(dir / "s", session, *frames.back(), &longest).ok());
+  const double brightest = *std::max_element(shortest.data().begin(), shortest.data().end()) / kRampRange;
+  EXPECT_GT(brightest, 0.02) << frames.front()->exposure_time_us << " us";
+  EXPECT_LT(brightest, 0.10) << frames.front()->exposure_time_us << " us";
+  std::vector<float> values = longest.data();
+  std::sort(values.begin(), values.end());
+  const double dimmest = values[values.size() / 20] / kRampRange;  // 5th percentile: the whole ramp is lit.
+  EXPECT_GT(dimmest, 0.85) << frames.back()->exposure_time_us << " us";
+  EXPECT_LT(dimmest, 0.999) << frames.back()->exposure_time_us << " us";
 }
 
 }  // namespace

@@ -12,19 +12,19 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
+#include "tests/testing/run_thinslab.h"
+#include "tests/testing/temp_dir.h"
 #include "thinslab/calib/response_io.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/drivers/display_gamma.h"
 #include "thinslab/sim/sensor_model.h"
 #include "thinslab/sim/sim_display_transfer.h"
-#include "tests/testing/run_thinslab.h"
-#include "tests/testing/temp_dir.h"
 
 namespace thinslab {
 namespace {
@@ -356,6 +356,39 @@ TEST_F(CliGammaTest, AcquiredDotScanThroughTheTableFitsAsOnALinearDisplay) {
   EXPECT_GT(glow, 0.2);
   EXPECT_NE(glowing.fit_output.find("display's black level"), std::string::npos) << glowing.fit_output;
   EXPECT_NE(glowing.summary["dark_frame"]["warning"].get<std::string>(), "");
+}
+
+// `acquire gamma --exposures-us auto` (issue #28, item 2): on a display 100x dimmer than the
+// fixed bracket was made for, the probe puts level 1 near half the range in the shortest exposure
+// and lengthens the longest for the first level above black (up to the 10 s cap), the session
+// check finds nothing to re-take and the table holds; a display so bright that level 1 saturates
+// in one refresh period is refused before the session, with nothing written.
+TEST_F(CliGammaTest, ThePlannedBracketFollowsTheDisplaysBrightness) {
+  const std::string dim = *dir_ / "dim_planned";
+  RunResult r =
+      RunThinslab("acquire gamma" + std::string(kCamera) + "--seed 3 --dot-radiance 0.0005 --exposures-us auto " + dim);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("verdict: good"), std::string::npos) << r.output;
+  Session s;
+  ASSERT_TRUE(ReadSession(dim, &s).ok());
+  EXPECT_NE(s.acquisition.plan.find("level 1/16 above black"), std::string::npos) << s.acquisition.plan;
+  std::set<double> exposures;
+  for (const FrameRecord& f : s.frames) exposures.insert(f.exposure_time_us);
+  ASSERT_GE(exposures.size(), 2u);
+  // The fixed bracket ends at 16 refresh periods (188 ms), where level 1 fills ~6 % of the range.
+  EXPECT_GT(*exposures.begin(), 0.5e6);
+  EXPECT_GT(*exposures.rbegin(), 5e6);
+  r = RunThinslab("calib gamma " + dim);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // Measured 0.0003 (the fixed bracket: 0.0005, and the check calls its noisy frames flicker).
+  EXPECT_LT(WorstTableError(dim + "/calib/display_gamma.txt"), 0.002);
+
+  const std::string bright = *dir_ / "bright_planned";
+  r = RunThinslab("acquire gamma" + std::string(kCamera) + "--seed 3 --dot-radiance 0.5 --exposures-us auto " + bright);
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("level 1 saturates even at 11.7"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("one refresh period of the display"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(bright)) << r.output;
 }
 
 }  // namespace
