@@ -251,11 +251,13 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     }
   }
   if (judged_reference) THINSLAB_RETURN_IF_ERROR(fit_judged_reference(data.shadow));
-  std::vector<float> ref_values;
-  for (size_t i = 0; i < n; ++i) {
-    if (status[i] == 0) ref_values.push_back(reference.data()[i]);
-  }
-  const double ref_median = Median(ref_values);
+  const double ref_median = [&]() {
+    std::vector<float> ref_values;
+    for (size_t i = 0; i < n; ++i) {
+      if (status[i] == 0) ref_values.push_back(reference.data()[i]);
+    }
+    return Median(std::move(ref_values));
+  }();
   if (!(ref_median > 0)) {
     return Status::Error("FitTau: the reference has no signal (median " + std::to_string(ref_median) +
                          " DN/us over unmasked pixels)");
@@ -317,11 +319,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       e0.data()[i] = status[i] == static_cast<uint8_t>(TauPixelStatus::kOutside) ? static_cast<float>(ref_median)
                                                                                   : reference.data()[i];
     }
-    std::vector<int> index_of(n, -1);
-    int num_params = 0;
-    for (size_t i = 0; i < n; ++i) {
-      if (status[i] == 0) index_of[i] = num_params++;
-    }
+    const int64_t num_params = std::count(status.begin(), status.end(), static_cast<uint8_t>(TauPixelStatus::kOk));
     // Ceres problem of the smoothness-prior variant, built once: the data residuals read the
     // unscattered ratio d_p = m_p - S_p, which each outer iteration updates.
     std::vector<double> unscattered(n, 1.0);
@@ -484,7 +482,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
   //    uniform layers is 1.0-1.26x this term from tau 0.5 to 3.8 (1.5-1.6x at tau 0.1-0.2,
   //    docs/stability.md);
   //  - resolution (below, from the map's gradient).
-  std::vector<double> sigma_tau(n, 0.0), sigma_noise_of(n, 0.0), sigma_model_of(n, 0.0);
+  std::vector<double> sigma_noise_of(n, 0.0), sigma_model_of(n, 0.0);
   for (size_t i = 0; i < n; ++i) {
     if (status[i] != 0) continue;
     const double transmission = std::max(std::exp(-tau[i]), min_ratio);
@@ -562,11 +560,11 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
       }
     }
   }
-  for (size_t i = 0; i < n; ++i) {
-    if (!measured_code(final_status[i]) && final_status[i] != static_cast<uint8_t>(TauPixelStatus::kMixed)) continue;
-    sigma_tau[i] = std::sqrt(Sqr(sigma_noise_of[i]) + Sqr(summary->reference_relative_sigma) +
-                             Sqr(sigma_model_of[i]) + Sqr(sigma_resolution_of[i]));
-  }
+  // sigma_tau of a measured pixel: the four terms in quadrature (written with the maps below).
+  auto sigma_tau_of = [&](size_t i) {
+    return std::sqrt(Sqr(sigma_noise_of[i]) + Sqr(summary->reference_relative_sigma) + Sqr(sigma_model_of[i]) +
+                     Sqr(sigma_resolution_of[i]));
+  };
   summary->pixel_pitch_m = p;
   if (!footprints.empty()) {
     std::sort(footprints.begin(), footprints.end());
@@ -586,16 +584,17 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     }
   }
   {
-    std::vector<float> noise, model, resolution;
-    for (size_t i = 0; i < n; ++i) {
-      if (final_status[i] != 0) continue;
-      noise.push_back(static_cast<float>(sigma_noise_of[i]));
-      model.push_back(static_cast<float>(sigma_model_of[i]));
-      resolution.push_back(static_cast<float>(sigma_resolution_of[i]));
-    }
-    summary->median_sigma_noise = Median(noise);
-    summary->median_sigma_model = Median(model);
-    summary->median_sigma_resolution = Median(resolution);
+    // One term at a time over the status-ok pixels (one float buffer, not three).
+    auto median_over_ok = [&](const std::vector<double>& term) {
+      std::vector<float> values;
+      for (size_t i = 0; i < n; ++i) {
+        if (final_status[i] == 0) values.push_back(static_cast<float>(term[i]));
+      }
+      return Median(std::move(values));
+    };
+    summary->median_sigma_noise = median_over_ok(sigma_noise_of);
+    summary->median_sigma_model = median_over_ok(sigma_model_of);
+    summary->median_sigma_resolution = median_over_ok(sigma_resolution_of);
     summary->median_sigma_reference = summary->reference_relative_sigma;
   }
 
@@ -612,7 +611,7 @@ Status FitTau(const TauFitOptions& options, const RectifiedShadowMaps& data, Tau
     if (measured) {
       value = tau[i];
       plain = tau_plain.data()[i];
-      sigma = sigma_tau[i];
+      sigma = sigma_tau_of(i);
       maps->sigma_tau_noise.data()[i] = static_cast<float>(sigma_noise_of[i]);
       sum_scatter += scattered[i] / std::max(m[i], 1e-6);
     }

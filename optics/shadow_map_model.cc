@@ -68,13 +68,13 @@ Image BuildBoardKernel(const std::function<double(double mu)>& radiance, const B
 Image ConvolveZeroPadded(const Image& source, const Image& kernel) {
   cv::Mat src(source.height(), source.width(), CV_32F, const_cast<float*>(source.data().data()));
   cv::Mat k(kernel.height(), kernel.width(), CV_32F, const_cast<float*>(kernel.data().data()));
-  cv::Mat out;
+  Image result(source.width(), source.height());
+  // Written into the result's own buffer (filter2D keeps a destination of the right size and
+  // type), so no second map-sized buffer is held.
+  cv::Mat out(result.height(), result.width(), CV_32F, result.data().data());
   // The kernel is point-symmetric, so correlation (filter2D) equals convolution.
   cv::filter2D(src, out, CV_32F, k, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
-  Image result(source.width(), source.height());
-  for (int y = 0; y < result.height(); ++y) {
-    for (int x = 0; x < result.width(); ++x) result.at(x, y) = out.at<float>(y, x);
-  }
+  CHECK_EQ(static_cast<const void*>(out.ptr<float>()), static_cast<const void*>(result.data().data()));
   return result;
 }
 
