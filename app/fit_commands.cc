@@ -64,10 +64,20 @@ int RunFitTau(int argc, char** argv) {
   std::string pixel;
   parser.AddString("pixel", &pixel, "X,Y: print this map pixel's data, iterations and result (as pbrt's --pixel)");
   parser.MarkDiagnostic("pixel");
+  // Issue #29: does not change the maps, so it does not enter the options digest.
+  double max_memory_gib = run.max_memory_bytes / double(1u << 30);
+  parser.AddDouble("max-memory", &max_memory_gib,
+                   "memory budget [GiB]: a map whose estimated need exceeds it is refused before any frame is read "
+                   "(the fit keeps every map point in memory); 0 = no budget");
+  parser.MarkDiagnostic("max-memory");
   int exit_code = 0;
   if (!parser.ParseCommandLine(argc, argv, &exit_code)) return exit_code;
   Status status = ParsePixelTrace(pixel, "--pixel", &run.fit.trace);
   run.fit.trace.out = &std::cout;
+  if (status.ok() && !(max_memory_gib >= 0 && max_memory_gib <= 1 << 20)) {
+    status = Status::Error("--max-memory: must be >= 0 GiB (0 = no budget), got " + std::to_string(max_memory_gib));
+  }
+  run.max_memory_bytes = max_memory_gib * double(1u << 30);
   if (status.ok() && !run.phase_dir.empty() && (parser.IsSet("g") || parser.IsSet("refine"))) {
     status = Status::Error("thinslab fit tau: --phase sets the layer's g and --refine; give either --phase or --g/--refine");
   }

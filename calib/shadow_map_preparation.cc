@@ -164,10 +164,7 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
   const SampleInfo& sample = session.rig.sample;
   const double p = sample.pixel_pitch_m;
   int w = 0, h = 0;
-  THINSLAB_RETURN_IF_ERROR(CheckedGridSize(sample.region_max_m.x() - sample.region_min_m.x(),
-                                           sample.region_max_m.y() - sample.region_min_m.y(), p, GridRounding::kNearest,
-                                           1, manifest + ": rig.sample (region_min_m, region_max_m, pixel_pitch_m)",
-                                           &w, &h));
+  THINSLAB_RETURN_IF_ERROR(ShadowMapGridSize(session, manifest, &w, &h));
   const double distance = options.board_distance_m > 0 ? options.board_distance_m : session.rig.board.distance_m;
   maps->region_min_m = sample.region_min_m;
   maps->pixel_pitch_m = p;
@@ -260,6 +257,14 @@ Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
     }
   }
   return Status::Ok();
+}
+
+Status ShadowMapGridSize(const Session& session, const std::string& manifest, int* width, int* height) {
+  const SampleInfo& sample = session.rig.sample;
+  return CheckedGridSize(sample.region_max_m.x() - sample.region_min_m.x(),
+                         sample.region_max_m.y() - sample.region_min_m.y(), sample.pixel_pitch_m,
+                         GridRounding::kNearest, 1,
+                         manifest + ": rig.sample (region_min_m, region_max_m, pixel_pitch_m)", width, height);
 }
 
 }  // namespace thinslab

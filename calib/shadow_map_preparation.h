@@ -79,4 +79,8 @@ struct RectifiedShadowMaps {
 Status PrepareShadowMaps(const std::string& session_dir, const Session& session,
                          const ShadowMapPreparationOptions& options, RectifiedShadowMaps* maps);
 
+// The map grid PrepareShadowMaps rectifies onto: rig.sample's region at its pixel pitch (to the
+// nearest whole pixel). `manifest` names the file in errors.
+Status ShadowMapGridSize(const Session& session, const std::string& manifest, int* width, int* height);
+
 }  // namespace thinslab

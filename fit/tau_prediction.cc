@@ -11,18 +11,29 @@
 
 namespace thinslab {
 
-ScatterKernelBank LayerScatterKernelBank(const TauFitOptions& layer, double board_distance_m, double pixel_pitch_m,
-                                         int width, int height) {
+BoardGeometry LayerScatterGeometry(const TauFitOptions& layer, double board_distance_m, double pixel_pitch_m, int width,
+                                   int height) {
   BoardGeometry geometry;
   geometry.distance_m = board_distance_m;
   geometry.pixel_pitch_m = pixel_pitch_m;
   geometry.max_angle_deg = layer.kernel_max_angle_deg;
   geometry.max_radius_px = static_cast<int>(std::ceil(std::hypot(width, height)));
+  return geometry;
+}
+
+std::vector<double> LayerScatterNodes(const TauFitOptions& layer) {
   std::vector<double> nodes;
   for (double t : ScatterKernelBank::DefaultNodes()) {
     nodes.push_back(t);
     if (t >= layer.tau_max) break;
   }
+  return nodes;
+}
+
+ScatterKernelBank LayerScatterKernelBank(const TauFitOptions& layer, double board_distance_m, double pixel_pitch_m,
+                                         int width, int height) {
+  const BoardGeometry geometry = LayerScatterGeometry(layer, board_distance_m, pixel_pitch_m, width, height);
+  const std::vector<double> nodes = LayerScatterNodes(layer);
   const double albedo = layer.layer_albedo, g = layer.layer_g;
   // Gu et al. 2007, Eq. 6 with mu'_i = 1, divided by tau (its limit at tau = 0).
   return ScatterKernelBank(nodes, [albedo, g](double t, double mu) {

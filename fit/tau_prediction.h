@@ -19,6 +19,12 @@
 
 namespace thinslab {
 
+// The geometry (kernel angle, radius capped at the grid's diagonal) and the tau nodes (up to
+// tau_max) of LayerScatterKernelBank.
+BoardGeometry LayerScatterGeometry(const TauFitOptions& layer, double board_distance_m, double pixel_pitch_m, int width,
+                                   int height);
+std::vector<double> LayerScatterNodes(const TauFitOptions& layer);
+
 // The Eq. 6 kernels of the layer (albedo, g, kernel angle and tau nodes up to tau_max of
 // `layer`) at `board_distance_m` on a width x height grid of `pixel_pitch_m`.
 ScatterKernelBank LayerScatterKernelBank(const TauFitOptions& layer, double board_distance_m, double pixel_pitch_m,

@@ -15,13 +15,18 @@
 
 namespace thinslab {
 
-Image BuildBoardKernel(const std::function<double(double mu)>& radiance, const BoardGeometry& geometry) {
+int BoardKernelRadiusPx(const BoardGeometry& geometry) {
   CHECK_GT(geometry.distance_m, 0);
   CHECK_GT(geometry.pixel_pitch_m, 0);
   const double d_px = geometry.distance_m / geometry.pixel_pitch_m;
   int radius = static_cast<int>(std::ceil(d_px * std::tan(geometry.max_angle_deg * kPi / 180.0)));
   if (geometry.max_radius_px > 0) radius = std::min(radius, geometry.max_radius_px);
-  radius = std::max(radius, 1);
+  return std::max(radius, 1);
+}
+
+Image BuildBoardKernel(const std::function<double(double mu)>& radiance, const BoardGeometry& geometry) {
+  const double d_px = geometry.distance_m / geometry.pixel_pitch_m;
+  const int radius = BoardKernelRadiusPx(geometry);
   const int size = 2 * radius + 1;
   Image kernel(size, size);
   const double mu_min = std::cos(geometry.max_angle_deg * kPi / 180.0);

@@ -30,6 +30,9 @@ struct BoardGeometry {
   int max_radius_px = 0;       // Caps the kernel radius (0 = no cap); set to the grid diagonal.
 };
 
+// Radius [px] of BuildBoardKernel's kernel: light up to max_angle_deg from the normal, capped.
+int BoardKernelRadiusPx(const BoardGeometry& geometry);
+
 // Pixel-integrated irradiance kernel of a radiance lobe R(mu) leaving one source pixel of unit
 // incident irradiance. Square, odd size, centre = zero offset; entries in units of R.
 Image BuildBoardKernel(const std::function<double(double mu)>& radiance, const BoardGeometry& geometry);

@@ -1,24 +1,25 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/pipeline/tau_pipeline.h"
 
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "thinslab/calib/shadow_map_preparation.h"
+#include "thinslab/core/exr_io.h"
+#include "thinslab/core/false_color.h"
+#include "thinslab/core/file.h"
+#include "thinslab/core/memory.h"
+#include "thinslab/core/session_io.h"
+#include "thinslab/core/version.h"
+#include "thinslab/fit/tau_memory.h"
 #include "thinslab/pipeline/calibration_summary.h"
 #include "thinslab/pipeline/capture_reading.h"
 #include "thinslab/pipeline/folder_report.h"
 #include "thinslab/pipeline/layer_from_phase.h"
 #include "thinslab/pipeline/prediction_report.h"
-#include "thinslab/calib/shadow_map_preparation.h"
-#include "thinslab/core/exr_io.h"
-#include "thinslab/core/false_color.h"
-#include "thinslab/core/file.h"
-#include "thinslab/core/session_io.h"
-#include "thinslab/core/version.h"
 
 namespace thinslab {
 namespace {
@@ -26,7 +27,7 @@ namespace {
 std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data, const CaptureCompleteness& capture,
                         const TauFitOptions& fit, const PhaseLayerChoice* phase, double color_max,
                         const nlohmann::json& validation, const nlohmann::json& consistency,
-                        const Provenance& provenance) {
+                        const nlohmann::json& memory, const Provenance& provenance) {
   nlohmann::json j;
   j["format"] = "thinslab-fit-summary";
   j["provenance"] = ProvenanceJson(provenance);
@@ -50,6 +51,7 @@ std::string SummaryJson(const TauFitSummary& s, const RectifiedShadowMaps& data,
                                  {"multiple_scattering", s.median_sigma_model},
                                  {"resolution", s.median_sigma_resolution}};
   j["consistency"] = consistency;
+  j["memory"] = memory;
   j["warnings"] = s.warnings;
   j["reference"] = {{"mode", fit.reference},
                     {"pixels_judged_clean", s.pixels_judged_clean >= 0 ? nlohmann::json(s.pixels_judged_clean)
@@ -98,6 +100,27 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
     THINSLAB_RETURN_IF_ERROR(ReadPhaseLayerChoice(run.phase_dir, &phase));
     ApplyPhaseLayerChoice(phase, &fit);
   }
+  // Issue #29: the map's memory need against the budget and the machine, before any frame is read.
+  const std::string manifest = JoinPath(session_dir, kSessionManifestName);
+  int grid_width = 0, grid_height = 0;
+  THINSLAB_RETURN_IF_ERROR(ShadowMapGridSize(session, manifest, &grid_width, &grid_height));
+  if (session.rig.cameras.empty()) return Status::Error(manifest + ": rig.cameras is empty");
+  const CameraInfo& camera = session.rig.cameras[0];
+  const double board_distance = run.board_distance_m > 0 ? run.board_distance_m : session.rig.board.distance_m;
+  const TauFitMemoryEstimate need =
+      EstimateTauFitMemory(grid_width, grid_height, static_cast<int64_t>(camera.width_px) * camera.height_px,
+                           board_distance, session.rig.sample.pixel_pitch_m, fit, run.split_half_check);
+  const std::string what = manifest + ": the " + std::to_string(grid_width) + " x " + std::to_string(grid_height) +
+                           " map (rig.sample) from a " + std::to_string(camera.width_px) + " x " +
+                           std::to_string(camera.height_px) + " camera";
+  if (run.max_memory_bytes > 0 && need.total_bytes() > run.max_memory_bytes) {
+    char budget[48];
+    std::snprintf(budget, sizeof(budget), "%.2f GiB", run.max_memory_bytes / (1024.0 * 1024 * 1024));
+    return Status::Error(what + " needs about " + need.Text() + ", more than --max-memory " + budget +
+                         ": give a larger --max-memory (0: no budget), --split-half-check false, or a coarser "
+                         "rig.sample.pixel_pitch_m (fit tau keeps every map point in memory)");
+  }
+  THINSLAB_RETURN_IF_ERROR(CheckMemoryNeed(need.total_bytes(), what));
   RectifiedShadowMaps data;
   THINSLAB_RETURN_IF_ERROR(PrepareShadowMaps(session_dir, session, prep_options, &data));
   int64_t in_view = 0, saturated = 0;
@@ -193,6 +216,9 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
                       ShadowRegionsText(regions);
   }
 
+  const nlohmann::json memory = {{"estimated_bytes", need.total_bytes()},
+                                 {"budget_bytes", run.max_memory_bytes},
+                                 {"peak_resident_bytes", PeakResidentMemoryMiB() * 1024 * 1024}};
   const SampleInfo& sample = session.rig.sample;
   Image& tau = maps.tau;
   const Provenance provenance{"fit tau", session_dir, "", run.options_ini};
@@ -221,7 +247,10 @@ Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_falsecolor.png"), tau, 0, &status, color));
   color.label = "tau Eq.7";
   THINSLAB_RETURN_IF_ERROR(WriteFalseColorPng(JoinPath(out.path(), "tau_plain_falsecolor.png"), tau, 1, &status, color));
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase, color.max_value, validation, consistency, provenance)));
+  THINSLAB_RETURN_IF_ERROR(
+      WriteFileAtomically(JoinPath(out.path(), "summary.json"),
+                          SummaryJson(*summary, data, capture, fit, run.phase_dir.empty() ? nullptr : &phase,
+                                      color.max_value, validation, consistency, memory, provenance)));
   THINSLAB_RETURN_IF_ERROR(
       WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport() + validation_text));
   if (!validation_text.empty()) std::cout << validation_text;

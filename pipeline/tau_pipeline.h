@@ -29,6 +29,10 @@ struct FitTauRun {
   // Fit the even and the odd shadow frames separately too and compare them (summary.json
   // `consistency`; needs >= 2 shadow frames): the noise part of sigma_tau put to a test.
   bool split_half_check = true;
+  // Budget of the fit's peak memory [bytes] (issue #29): a capture whose estimated need
+  // (fit/tau_memory.h) exceeds it is refused before any frame is read; 0 = none (the machine's
+  // memory still bounds it).
+  double max_memory_bytes = 2.0 * 1024 * 1024 * 1024;
   std::string options_ini;      // Effective options, written as options.ini.
 };
 Status FitTauPipeline(const std::string& session_dir, const std::string& out_dir, const FitTauRun& run,

@@ -504,7 +504,8 @@ std::vector<Case> Cases() {
       C("info_frame_truncated", "shadow", BreakFrame("shadow", F::kTruncated), "info {in}", {"frames/cam0/shadow/"}),
       // ---- thinslab check (issue #28): the same reader, its options and its JSON output ----
       C("check_no_such_folder", "", none, "check {case}/nothing", {"{case}/nothing"}),
-      C("check_manifest_not_json", "shadow", Write("{in}/session.json", "{\"format\": "), "check {in}", {"session.json"}),
+      C("check_manifest_not_json", "shadow", Write("{in}/session.json", "{\"format\": "), "check {in}",
+        {"session.json"}),
       C("check_frame_truncated", "shadow", BreakFrame("shadow", F::kTruncated), "check {in}", {"frames/cam0/shadow/"}),
       C("check_fraction_above_1", "shadow", none, "check {in} --max-saturated-fraction 1.5",
         {"max_saturated_fraction", "1.5"}),
@@ -531,6 +532,10 @@ std::vector<Case> Cases() {
         {"--supersample|supersample"}),
       C("fit_tau_board_distance_option_1e308", "shadow", none, "fit tau {in} --board-distance-m 1e308",
         {"--board-distance-m"}),
+      C("fit_tau_max_memory_negative", "shadow", none, "fit tau {in} --max-memory -1", {"--max-memory"}),
+      // Issue #29: a map over the budget is refused before any frame is read, naming its need.
+      C("fit_tau_max_memory_below_the_need", "shadow", none, "fit tau {in} --max-memory 0.01",
+        {"needs about", "more than --max-memory 0.01 GiB", "--split-half-check false"}),
       C("fit_tau_reference_unknown", "shadow", none, "fit tau {in} --reference mirror",
         {"--reference|TauFitOptions::reference"}),
       C("fit_tau_reference_flat_without_flat_field", "shadow", none, "fit tau {in} --reference flat",
@@ -693,7 +698,8 @@ std::vector<Case> Cases() {
       // ---- thinslab predict ----
       C("predict_without_fit", "dots", none, "predict {in}", {"fit/dmf"}),
       C("predict_dots_text", "dots", none, "predict {in} --dots abc", {"--dots"}),
-      C("predict_fit_of_shadow_capture", "dots,shadow", none, "predict {in} --fit {shadow}", {"{shadow}", "not an output"}),
+      C("predict_fit_of_shadow_capture", "dots,shadow", none, "predict {in} --fit {shadow}",
+        {"{shadow}", "not an output"}),
       C("predict_dots_with_tau_fit", "shadow_fit", none, "predict {in} --dots 1,1", {"--dots", "fit dmf"}),
       C("predict_tau_without_reference", "shadow_fit", SetFrame("reference", "/kind", "unused"), "predict {in}",
         {"session.json", "reference"}),
@@ -712,8 +718,7 @@ std::vector<Case> Cases() {
         "export mitsuba {in}/fit/tau {out} --phase {laser_fit}/fit", {"--phase", "summary.json"}),
       C("export_min_alpha_zero", "shadow_fit", none, "export pbrt {in}/fit/tau {out} --min-alpha 0", {"--min-alpha"}),
       C("export_albedo_above_one", "layer", none, "export mitsuba {layer} {out} --albedo 2", {"--albedo"}),
-      C("export_out_inside_fit", "shadow_fit", none, "export pbrt {in}/fit/tau {in}/fit/tau/scene",
-        {"{in}/fit/tau"}),
+      C("export_out_inside_fit", "shadow_fit", none, "export pbrt {in}/fit/tau {in}/fit/tau/scene", {"{in}/fit/tau"}),
 
       // ---- thinslab preview ----
       C("preview_not_a_fit", "shadow", none, "preview {in} {out}", {"{in}", "holds no maps.exr"}),

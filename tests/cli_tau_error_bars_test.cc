@@ -77,6 +77,13 @@ TEST(TauErrorBars, FinerThanTheCameraIsReportedAndCovered) {
       SimulateAndFit(dir, "sharp", "--camera-width-px 1600 --camera-height-px 1200 --photons 50000");
   EXPECT_LT(sharp["resolution"]["camera_footprint_m"]["median"].get<double>(), 8e-5);
   EXPECT_TRUE(sharp["warnings"].empty()) << sharp["warnings"].dump();
+  // Issue #29: the memory estimate the budget is checked against bounds the measured peak (here
+  // the 1600 x 1200 camera's frames), without being far above it; the default budget is 2 GiB.
+  const nlohmann::json& memory = sharp["memory"];
+  const double estimated = memory["estimated_bytes"], peak = memory["peak_resident_bytes"];
+  EXPECT_EQ(memory["budget_bytes"].get<double>(), 2.0 * (1u << 30));
+  EXPECT_GE(estimated, peak) << memory.dump();
+  EXPECT_LE(estimated, 2 * peak) << memory.dump();
 }
 
 // One linear float frame per light state at value scale 1000, no gain in the manifest: the
