@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <utility>
@@ -19,9 +20,11 @@ int BoardKernelRadiusPx(const BoardGeometry& geometry) {
   CHECK_GT(geometry.distance_m, 0);
   CHECK_GT(geometry.pixel_pitch_m, 0);
   const double d_px = geometry.distance_m / geometry.pixel_pitch_m;
-  int radius = static_cast<int>(std::ceil(d_px * std::tan(geometry.max_angle_deg * kPi / 180.0)));
-  if (geometry.max_radius_px > 0) radius = std::min(radius, geometry.max_radius_px);
-  return std::max(radius, 1);
+  // Capped before the conversion: a far board or a fine pitch (a memory estimate of an absurd
+  // option, fit/tau_memory.h) must not overflow the int.
+  double radius = std::ceil(d_px * std::tan(geometry.max_angle_deg * kPi / 180.0));
+  if (geometry.max_radius_px > 0) radius = std::min(radius, static_cast<double>(geometry.max_radius_px));
+  return static_cast<int>(std::clamp(radius, 1.0, static_cast<double>(std::numeric_limits<int>::max() / 4)));
 }
 
 Image BuildBoardKernel(const std::function<double(double mu)>& radiance, const BoardGeometry& geometry) {
