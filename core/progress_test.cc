@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <thread>
 #include <vector>
 
@@ -41,7 +42,15 @@ TEST(Progress, CancellingStopsTheLoopEarly) {
   };
   ProgressTracker tracker(callback, "items", 100000, 0.0);
   std::atomic<int> ran{0};
-  EXPECT_FALSE(ParallelFor(100000, 2, [&](int) { ++ran; }, &tracker));
+  // Each item takes a little time: on a loaded machine the worker thread could otherwise run all
+  // the items before the calling thread, which reports and so cancels, is scheduled at all.
+  EXPECT_FALSE(ParallelFor(
+      100000, 2,
+      [&](int) {
+        std::this_thread::sleep_for(std::chrono::microseconds(10));
+        ++ran;
+      },
+      &tracker));
   EXPECT_TRUE(tracker.cancelled());
   EXPECT_LT(ran, 100000);
   EXPECT_FALSE(tracker.Report(6));  // Sticky.
