@@ -116,15 +116,21 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
 
 Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
                            double held_out_tolerance, std::vector<DmfRegionAccuracy>* accuracy,
-                           const ProgressCallback& progress) {
+                           const ProgressCallback& progress, const std::vector<double>* held_out_errors) {
   const DmfNdfGrid grid(maps.ndf_resolution);
   const bool held_out = std::any_of(slices.train.begin(), slices.train.end(), [](uint8_t t) { return t == 0; });
   const int64_t n = slices.num_points();
   constexpr char kWhat[] = "CompareDmfWithTruth";
+  if (held_out_errors != nullptr && held_out_errors->size() != static_cast<size_t>(n)) {
+    return Status::Error(std::string(kWhat) + ": held-out errors of " + std::to_string(held_out_errors->size()) +
+                         " points for " + std::to_string(n));
+  }
   // Held-out errors first, one band of points at a time (streamed slices): the costly part, a
   // stage of its own so that each ETA counts items of one cost.
   std::vector<double> held_out_error(slices.num_points(), -1);
-  if (held_out) {
+  if (held_out && held_out_errors != nullptr) {
+    held_out_error = *held_out_errors;
+  } else if (held_out) {
     ProgressTracker errors(progress, "fit dmf: ground truth, held-out errors", n);
     THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
       return ForEachReportedChunk(first, count, &errors, kWhat, [&](int start, int chunk) {
@@ -269,13 +275,15 @@ namespace {
 // Predictions of the dots `use` selects (positions; each point's values and sigmas from
 // `values(p)` and `sigmas(p)`, sigmas may be nullptr) against their measurements, as
 // EvaluateValidationDots describes; points visited band by band (ForEachPointBand) when
-// `banded`, else all at once.
+// `banded`, else all at once. `point_errors` (optional): every point's relative RMS error,
+// flagged points' too (-1 where none: no NDF, no dot in the lobe).
 template <typename Values, typename Sigmas>
 Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
                               const std::vector<DmfTruthRegion>& regions, double lobe_fraction,
                               const std::vector<Eigen::Vector3d>& positions, const Values& values, const Sigmas& sigmas,
                               const std::vector<uint8_t>& use, bool banded, int num_threads,
-                              std::vector<DmfValidationError>* result, ProgressTracker* progress, const char* what) {
+                              std::vector<DmfValidationError>* result, ProgressTracker* progress, const char* what,
+                              std::vector<double>* point_errors = nullptr) {
   const int nd = static_cast<int>(positions.size());
   std::vector<DmfValidationError>& out = *result;
   out.assign(1 + regions.size(), DmfValidationError());
@@ -291,12 +299,12 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
     int pairs = 0;
     double num = 0, den = 0, noise = 0;
   };
+  if (point_errors != nullptr) point_errors->assign(slices.num_points(), -1);
   auto score_point = [&](int p) {
     PointScore score;
     const DmfPointFit& stored = maps.fits[p];
-    if ((stored.status != DmfStatus::kOk && stored.status != DmfStatus::kInterpolated) || !stored.HasNdf()) {
-      return score;
-    }
+    const bool pooled = stored.status == DmfStatus::kOk || stored.status == DmfStatus::kInterpolated;
+    if ((!pooled && point_errors == nullptr) || !stored.HasNdf()) return score;
     const Eigen::Vector3d x = slices.PointPosition(p);
     const Eigen::Vector3d entry = slices.LightEntryPoint(p);
     const Eigen::Vector3d o = SampleToOptical((slices.camera_centre - x).normalized());
@@ -327,6 +335,8 @@ Status EvaluateDotPredictions(const DmfSliceSet& slices, const DmfMaps& maps,
       if (sigma != nullptr) score.noise += Sqr(static_cast<double>(sigma[v]));
       ++score.pairs;
     }
+    if (point_errors != nullptr && score.den > 0) (*point_errors)[p] = std::sqrt(score.num / score.den);
+    score.scored = pooled;  // Flagged points: their error only, outside the pooled figures.
     return score;
   };
   std::vector<PointScore> scores;
@@ -402,19 +412,21 @@ std::vector<DmfValidationError> EvaluateValidationDots(const DmfSliceSet& slices
 
 Status EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
                            double lobe_fraction, int num_threads, std::vector<DmfValidationError>* out,
-                           const ProgressCallback& progress) {
+                           const ProgressCallback& progress, std::vector<double>* point_errors) {
   ProgressTracker tracker(progress, "fit dmf: held-out dots", slices.num_points());
   std::vector<uint8_t> held_out(slices.train.size());
   for (size_t q = 0; q < held_out.size(); ++q) held_out[q] = slices.train[q] == 0;
   return EvaluateDotPredictions(
       slices, maps, regions, lobe_fraction, slices.dot_positions, [&](int p) { return slices.PointValues(p); },
-      [&](int p) { return slices.PointSigmas(p); }, held_out, true, num_threads, out, &tracker, "EvaluateHeldOutDots");
+      [&](int p) { return slices.PointSigmas(p); }, held_out, true, num_threads, out, &tracker, "EvaluateHeldOutDots",
+      point_errors);
 }
 
 std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps,
                                                     const std::vector<DmfTruthRegion>& regions, double lobe_fraction) {
   std::vector<DmfValidationError> out;
-  const Status status = EvaluateHeldOutDots(slices, maps, regions, lobe_fraction, DefaultThreadCount(), &out);
+  const Status status =
+      EvaluateHeldOutDots(slices, maps, regions, lobe_fraction, DefaultThreadCount(), &out, ProgressCallback());
   CHECK(status.ok()) << status.message();  // Slices in memory: nothing to read.
   return out;
 }

@@ -86,9 +86,12 @@ std::vector<DmfRegionAccuracy> CompareDmfWithTruth(const DmfSliceSet& slices, co
                                                    const std::vector<DmfTruthRegion>& regions,
                                                    double held_out_tolerance = 0.5);
 // `progress` (core/progress.h) hears of the points done, in every Status form below.
+// `held_out_errors` (optional): every point's held-out error as EvaluateHeldOutDots' point_errors
+// gives it (the same as DmfHeldOutError's); without it each is predicted here again.
 Status CompareDmfWithTruth(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
                            double held_out_tolerance, std::vector<DmfRegionAccuracy>* accuracy,
-                           const ProgressCallback& progress = ProgressCallback());
+                           const ProgressCallback& progress = ProgressCallback(),
+                           const std::vector<double>* held_out_errors = nullptr);
 std::string DmfComparisonJson(const std::vector<DmfRegionAccuracy>& accuracy);
 
 // How well the fitted maps predict the capture's validation dots (DmfValidationDots; issue #23
@@ -131,8 +134,11 @@ Status EvaluateValidationDots(const DmfSliceSet& slices, const DmfMaps& maps,
 std::vector<DmfValidationError> EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps,
                                                     const std::vector<DmfTruthRegion>& regions,
                                                     double lobe_fraction = 0.1);
+// `point_errors` (optional): every point's relative RMS error on its held-out in-lobe dots
+// (DmfHeldOutError's figure, flagged points included; -1 where none), for CompareDmfWithTruth.
 Status EvaluateHeldOutDots(const DmfSliceSet& slices, const DmfMaps& maps, const std::vector<DmfTruthRegion>& regions,
                            double lobe_fraction, int num_threads, std::vector<DmfValidationError>* out,
-                           const ProgressCallback& progress = ProgressCallback());
+                           const ProgressCallback& progress = ProgressCallback(),
+                           std::vector<double>* point_errors = nullptr);
 
 }  // namespace thinslab

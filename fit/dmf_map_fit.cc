@@ -277,8 +277,9 @@ namespace {
 // Eq. 20 for the NDF: D_i = sum_j w_ij D_j over point p's neighbouring representatives with a
 // fitted NDF and k_s > 0, normalised by the weights used; ln of it (floored at 1e-6) into
 // *log_ndf. Returns the weight sum (0: no usable neighbour, *log_ndf untouched).
-double InterpolateLogNdf(const std::vector<DmfPointFit>& fits, const DmfClustering& c, int p, int num_cells,
-                         std::vector<double>* log_ndf) {
+// `linear_ndf`: DmfMaps::representative_ndf, or empty (each D_j exponentiated here).
+double InterpolateLogNdf(const std::vector<DmfPointFit>& fits, const DmfClustering& c,
+                         const std::vector<double>& linear_ndf, int p, int num_cells, std::vector<double>* log_ndf) {
   std::vector<double> d(num_cells, 0.0);
   double weight_sum = 0;
   for (int k = 0; k < c.num_neighbors; ++k) {
@@ -287,7 +288,12 @@ double InterpolateLogNdf(const std::vector<DmfPointFit>& fits, const DmfClusteri
     if (j < 0 || w <= 0) continue;
     const DmfPointFit& rep = fits[c.representatives[j]];
     if (rep.log_ndf.empty() || !(rep.k_s > 0)) continue;
-    for (int cell = 0; cell < num_cells; ++cell) d[cell] += w * std::exp(rep.log_ndf[cell]);
+    if (linear_ndf.empty()) {
+      for (int cell = 0; cell < num_cells; ++cell) d[cell] += w * std::exp(rep.log_ndf[cell]);
+    } else {
+      const double* linear = linear_ndf.data() + static_cast<size_t>(j) * num_cells;
+      for (int cell = 0; cell < num_cells; ++cell) d[cell] += w * linear[cell];
+    }
     weight_sum += w;
   }
   if (!(weight_sum > 0)) return 0;
@@ -301,9 +307,21 @@ double InterpolateLogNdf(const std::vector<DmfPointFit>& fits, const DmfClusteri
 DmfPointFit DmfMaps::FitWithNdf(int p) const {
   DmfPointFit f = fits[p];
   if (f.log_ndf.empty() && f.ndf_interpolated) {
-    InterpolateLogNdf(fits, clustering, p, ndf_resolution * ndf_resolution, &f.log_ndf);
+    InterpolateLogNdf(fits, clustering, representative_ndf, p, ndf_resolution * ndf_resolution, &f.log_ndf);
   }
   return f;
+}
+
+void DmfMaps::CacheRepresentativeNdfs(int num_threads) {
+  const int num_cells = ndf_resolution * ndf_resolution;
+  const int nr = static_cast<int>(clustering.representatives.size());
+  representative_ndf.assign(static_cast<size_t>(nr) * num_cells, 0.0);
+  ParallelFor(nr, num_threads, [&](int j) {
+    const DmfPointFit& rep = fits[clustering.representatives[j]];
+    if (rep.log_ndf.empty() || !(rep.k_s > 0)) return;  // Not an Eq. 20 term (InterpolateLogNdf).
+    double* linear = representative_ndf.data() + static_cast<size_t>(j) * num_cells;
+    for (int cell = 0; cell < num_cells; ++cell) linear[cell] = std::exp(rep.log_ndf[cell]);
+  });
 }
 
 Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& options, DmfMaps* maps) {
@@ -327,6 +345,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
   maps->fits.assign(np, DmfPointFit());
   maps->num_fitted = 0;
   maps->clustering = DmfClustering();
+  maps->representative_ndf.clear();
 
   // Diffuse separation (Eq. 14) and the slice shapes the clustering compares.
   auto t = std::chrono::steady_clock::now();
@@ -533,6 +552,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
     const DmfClustering& c = maps->clustering;
     std::vector<uint8_t> is_rep(np, 0);
     for (int p : c.representatives) is_rep[p] = 1;
+    maps->CacheRepresentativeNdfs(options.num_threads);
     ProgressTracker interpolation_progress(options.progress, "fit dmf: interpolation (Dai Eqs. 20-22)", np);
     THINSLAB_RETURN_IF_ERROR(ForEachPointBand(slices, [&](int first, int count) {
       auto interpolate = [&](int p) {
@@ -577,7 +597,7 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         f.roughness.ggx_misfit /= weight_sum;
         f.roughness.beckmann_misfit /= weight_sum;
         DecideFamily(options.point.roughness, &f.roughness);
-        InterpolateLogNdf(maps->fits, c, p, grid.num_cells(), &f.log_ndf);
+        InterpolateLogNdf(maps->fits, c, maps->representative_ndf, p, grid.num_cells(), &f.log_ndf);
         f.ndf_interpolated = true;
         const DmfSlice slice = slices.Slice(p);
         int used = 0;

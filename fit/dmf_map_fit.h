@@ -143,7 +143,14 @@ struct DmfMaps {
   std::vector<DmfPointFit> fits;  // One per point (log_ndf empty where nothing was fitted).
   int num_fitted = 0;             // Points fitted directly (representatives or all).
   DmfClustering clustering;       // Empty unless clustered.
+  // D_j = exp(ln D_j) of every representative (clustering.representatives order, N*N cells each)
+  // with a fitted NDF and k_s > 0, the terms of Eq. 20: computed once (CacheRepresentativeNdfs),
+  // where every interpolated NDF took N*N exponentials per neighbour each time it was rebuilt
+  // (about 20 % of the paper's workload). Empty: not cached, FitWithNdf exponentiates.
+  std::vector<double> representative_ndf;
   DmfMapTimings timings;
+  // Fills representative_ndf from the representatives' fits (on num_threads threads).
+  void CacheRepresentativeNdfs(int num_threads);
   // Point p's fit with its log_ndf filled in (a copy): a fit that streamed its slices (issue #29)
   // keeps no log_ndf (N*N doubles each) for interpolated points (DmfPointFit::ndf_interpolated)
   // and this rebuilds it from the representatives.

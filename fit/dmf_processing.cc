@@ -25,8 +25,9 @@ namespace thinslab {
 namespace {
 // Dots inside the camera's view (5 % margin) that detection may miss before the fit stops.
 constexpr double kMaxMissedDotsInView = 0.05;
-}  // namespace
-namespace {
+// Dot brackets a process merges at once (PrepareDotScanSlices); each holds its frames, HDR
+// images and a column of every point.
+constexpr int kDotBracketsInFlight = 2;
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
@@ -100,10 +101,6 @@ Status MeasureAllDotsGeometry(const std::string& session_dir, const Session& ses
   return Status::Ok();
 }
 
-namespace {
-
-}  // namespace
-
 bool DmfProcessingOptions::Check(std::string* error) const {
   std::ostringstream e;
   if (pitch_m < 0) e << "pitch must be >= 0, got " << pitch_m;
@@ -122,6 +119,8 @@ bool DmfProcessingOptions::Check(std::string* error) const {
     e << "spill_dir: needed with a memory budget";
   }
   else if (fit_ndf_resolution < 1) e << "fit_ndf_resolution must be >= 1";
+  else if (num_threads < 1 || num_threads > kMaxThreads)
+    e << "num_threads must be in 1.." << kMaxThreads;
   else if (!(fit_cluster_fraction > 0 && fit_cluster_fraction <= 1)) e << "fit_cluster_fraction must be in (0, 1]";
   *error = e.str();
   return error->empty();
@@ -138,13 +137,14 @@ Status PlanDmfMemory(int num_points, int grid_width, int num_dots, int num_valid
   // (under MPI; counted on one process too, the estimate stays an upper bound) the 9 bytes a
   // point of the dot columns in flight of a round.
   const double per_point = sizeof(DmfPointFit) + 4 * (4 + 8) + 24 * 4 + 16 * 4 + 3 * 8 +
-                           Sqr(options.supersample) * 8.0 + 8.0 * num_validation_dots + 64 + 9;
+                           Sqr(options.supersample) * 8.0 + 8.0 * num_validation_dots + 64 + 9.0 * kDotBracketsInFlight;
   // Whatever the grid: the process itself (about 100 MiB resident for a tiny fit: code, libraries,
-  // the capture's manifest), a bracket's camera frames and their HDR images (about 64 bytes
-  // per camera pixel), the PCA subsample's shapes.
-  const double fixed = 128.0 * (1 << 20) + 64 * camera_pixels + 20000 * shape;
+  // the capture's manifest), the brackets in flight's camera frames and HDR images (about 64
+  // bytes per camera pixel each), the PCA subsample's shapes.
+  const double fixed = 128.0 * (1 << 20) + 64.0 * kDotBracketsInFlight * camera_pixels + 20000 * shape;
   const double representatives = std::min(np, std::max(64.0, options.fit_cluster_fraction * np));
-  plan->in_memory_bytes = fixed + np * (8 * nd + shape + ndf + per_point);
+  // The representatives' NDFs once more, linear (DmfMaps::representative_ndf).
+  plan->in_memory_bytes = fixed + np * (8 * nd + shape + ndf + per_point) + representatives * ndf;
   plan->spill_file_bytes = 8 * np * nd;
   plan->streamed = options.stream_band_points > 0 ||
                    (options.max_memory_bytes > 0 && plan->in_memory_bytes > options.max_memory_bytes);
@@ -154,8 +154,8 @@ Status PlanDmfMemory(int num_points, int grid_width, int num_dots, int num_valid
     return Status::Ok();
   }
   // Streamed: a band's values, sigmas and shapes in memory (and LoadBand's 16 columns); the
-  // representatives' NDFs kept.
-  const double resident = fixed + np * per_point + representatives * ndf;
+  // representatives' NDFs kept, in logarithms and linear.
+  const double resident = fixed + np * per_point + 2 * representatives * ndf;
   const double per_band_point = 8 * nd + shape + 64;
   double band = options.max_memory_bytes > 0 ? std::floor((options.max_memory_bytes - resident) / per_band_point) : np;
   if (options.stream_band_points > 0) band = std::max<double>(grid_width, std::min<double>(band, options.stream_band_points));
@@ -454,7 +454,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     column->value.assign(np, 0.0f);
     column->sigma.assign(np, 0.0f);
     column->saturated.assign(np, 0);
-    ParallelFor(grid.height_px, DefaultThreadCount(), [&](int y) {
+    ParallelFor(grid.height_px, options.num_threads, [&](int y) {
       for (int x = 0; x < grid.width_px; ++x) {
         const int p = y * grid.width_px + x;
         const Eigen::Vector3d to_dot = job.position - entry_points[p];
@@ -517,8 +517,16 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   ProgressTracker progress(options.progress, "fit dmf: dot frames (HDR merge, Eq. 12)", static_cast<int64_t>(nd));
   std::map<int, DotColumn> columns;  // The round's, by job.
   DistributedLoop loop;
+  // A process measures kDotBracketsInFlight brackets at once: a bracket's frames are read and
+  // decoded on one thread (its merge and Eq. 12 run on all), so one at a time kept about 1.1 of
+  // the 2 cores busy at the paper's workload. The columns are stored in dot order (chunk_done).
+  const int in_flight = std::min(kDotBracketsInFlight, options.num_threads);
   loop.compute = [&](int begin, int end) -> Status {
-    for (int j = begin; j < end; ++j) THINSLAB_RETURN_IF_ERROR(measure(jobs[j], &columns[j]));
+    std::vector<DotColumn*> slots;
+    for (int j = begin; j < end; ++j) slots.push_back(&columns[j]);  // No insertion on the threads.
+    std::vector<Status> statuses(end - begin);
+    ParallelFor(end - begin, in_flight, [&](int k) { statuses[k] = measure(jobs[begin + k], slots[k]); });
+    for (const Status& s : statuses) THINSLAB_RETURN_IF_ERROR(s);
     return Status::Ok();
   };
   loop.pack = [&](int j, ByteWriter* out) {
@@ -550,7 +558,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   };
   if (!progress.Report(0)) return Status::Error("PrepareDotScanSlices: cancelled");
   THINSLAB_RETURN_IF_ERROR(
-      DistributedFor(group, static_cast<int>(jobs.size()), group.size(), "fit dmf: dot frames", loop));
+      DistributedFor(group, static_cast<int>(jobs.size()), group.size() * in_flight, "fit dmf: dot frames", loop));
   report->merge_s = Seconds(t);
   report->exposure_warning = report->exposure_check.Warning();
 

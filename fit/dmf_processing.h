@@ -20,11 +20,12 @@
 #include <vector>
 
 #include "thinslab/calib/dot_geometry.h"
-#include "thinslab/core/rigid3.h"
-#include "thinslab/core/progress.h"
 #include "thinslab/calib/exposure_check.h"
 #include "thinslab/calib/frame_noise.h"
 #include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/parallel.h"
+#include "thinslab/core/progress.h"
+#include "thinslab/core/rigid3.h"
 #include "thinslab/core/session_recovery.h"
 #include "thinslab/core/status.h"
 #include "thinslab/fit/dmf_map_fit.h"
@@ -71,6 +72,8 @@ struct DmfProcessingOptions {
   std::string streaming_refused_by;
   int fit_ndf_resolution = 32;   // Of the fit that follows (its NDFs' memory).
   double fit_cluster_fraction = 0.01;  // Of the fit that follows (1 = every point fitted directly).
+  // Threads of the dot frames' Eq. 12 loop; up to two of them merge two brackets at once.
+  int num_threads = DefaultThreadCount();
   bool Check(std::string* error) const;
 };
 

@@ -181,6 +181,7 @@ Status RunLadder(const DmfSliceSet& slices, DmfMaps* maps_out, const DmfMapFitOp
     // The evaluated points first (their own rung fits), then the points that inherit a
     // representative's choice take its replaced model with their own k_s.
     std::vector<uint8_t> replaced(slices.num_points(), 0);
+    maps_out->representative_ndf.clear();  // Representatives' NDFs may be replaced below.
     const DmfPointFitOptions rung_options = AnalyticRungOptions(options);  // k_s as rungs 3-4 fit it.
     auto rung_index = [&](int p) { return rung_of_point[p] == 3 ? 0 : rung_of_point[p] == 4 ? 1 : -1; };
     ParallelFor(static_cast<int>(points.size()), fit.num_threads, [&](int k) {
@@ -262,6 +263,7 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
 
   // The memory budget (issue #29): over it, the slices go to an unlinked file beside the output.
   run.processing.fit_ndf_resolution = run.fit.point.ndf_resolution;
+  run.processing.num_threads = run.fit.num_threads;
   run.processing.fit_cluster_fraction = run.fit.cluster ? run.fit.clustering.fraction : 1.0;
   if ((run.processing.max_memory_bytes > 0 || run.processing.stream_band_points > 0) && run.processing.spill_dir.empty()) {
     // Beside the output: in its staging folder, or (the other processes) in the folder that holds it.
@@ -440,21 +442,25 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
         JoinPath(out.path(), "ndf_" + std::to_string(x) + "_" + std::to_string(y) + ".png"), ndf, 0, nullptr, color));
   }
 
-  std::vector<DmfRegionAccuracy> accuracy;
-  if (has_truth) {
-    THINSLAB_RETURN_IF_ERROR(CompareDmfWithTruth(slices, maps, truth, 0.5, &accuracy, run.fit.progress));
-    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "comparison.json"), DmfComparisonJson(accuracy)));
-  }
   // Issue #23 section 4: the capture's validation dots, predicted by the tabulated fit.
+  // (DmfHeldOutError's lobe fraction: the held-out pass's point errors serve the comparison.)
   constexpr double kValidationLobeFraction = 0.1;
   std::vector<DmfValidationError> validation;
   THINSLAB_RETURN_IF_ERROR(EvaluateValidationDots(slices, maps, truth, kValidationLobeFraction, run.fit.num_threads,
                                                   &validation, run.fit.progress));
-  // The held-out grid dots (--hold-out), reported with or without the ladder.
+  // The held-out grid dots (--hold-out), reported with or without the ladder; their per-point
+  // errors are the ground-truth comparison's, predicted once.
   std::vector<DmfValidationError> held_out;
+  std::vector<double> held_out_errors;
   if (run.processing.hold_out) {
     THINSLAB_RETURN_IF_ERROR(EvaluateHeldOutDots(slices, maps, truth, kValidationLobeFraction, run.fit.num_threads,
-                                                 &held_out, run.fit.progress));
+                                                 &held_out, run.fit.progress, has_truth ? &held_out_errors : nullptr));
+  }
+  std::vector<DmfRegionAccuracy> accuracy;
+  if (has_truth) {
+    THINSLAB_RETURN_IF_ERROR(CompareDmfWithTruth(slices, maps, truth, 0.5, &accuracy, run.fit.progress,
+                                                 held_out_errors.empty() ? nullptr : &held_out_errors));
+    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "comparison.json"), DmfComparisonJson(accuracy)));
   }
   // A few points whose lobe peaks between their training dots can make the pooled figure.
   for (const auto& [what, errors] :

@@ -450,6 +450,40 @@ TEST_F(DmfEndToEnd, ClusteredFitStaysCloseToUnclustered) {
   EXPECT_LT(Median(clustered), Median(unclustered) + 0.05);
   const Image image = maps.ToImage();
   for (float v : image.data()) ASSERT_TRUE(std::isfinite(v));
+
+  // Issue #29's speed-ups compute the same numbers, bit for bit. (1) The Eq. 20 NDFs built from
+  // the cached linear representatives equal those exponentiated each time.
+  ASSERT_FALSE(maps.representative_ndf.empty());
+  DmfMaps uncached = maps;
+  uncached.representative_ndf.clear();
+  int rebuilt = 0;
+  for (int p = 0; p < slices_->num_points(); ++p) {
+    if (maps.fits[p].status != DmfStatus::kInterpolated) continue;
+    uncached.fits[p].log_ndf.clear();  // As a streamed fit keeps it.
+    uncached.fits[p].ndf_interpolated = true;
+    ASSERT_EQ(uncached.FitWithNdf(p).log_ndf, maps.fits[p].log_ndf) << p;
+    ++rebuilt;
+  }
+  EXPECT_GT(rebuilt, slices_->num_points() / 2);
+  // (2) The held-out pass's per-point errors are DmfHeldOutError's, flagged points included, and
+  // the ground-truth comparison given them writes what it writes predicting them itself.
+  std::vector<DmfTruthRegion> truth;
+  ASSERT_TRUE(ReadDmfTruth(*dir_, &truth).ok());
+  std::vector<DmfValidationError> held_out;
+  std::vector<double> errors;
+  ASSERT_TRUE(EvaluateHeldOutDots(*slices_, maps, truth, 0.1, 2, &held_out, ProgressCallback(), &errors).ok());
+  ASSERT_EQ(errors.size(), static_cast<size_t>(slices_->num_points()));
+  int flagged_scored = 0;
+  for (int p = 0; p < slices_->num_points(); ++p) {
+    ASSERT_EQ(errors[p], DmfHeldOutError(*slices_, maps, p)) << p;
+    const DmfStatus st = maps.fits[p].status;
+    flagged_scored += errors[p] >= 0 && st != DmfStatus::kOk && st != DmfStatus::kInterpolated;
+  }
+  EXPECT_GT(flagged_scored, 0);
+  std::vector<DmfRegionAccuracy> given, predicted;
+  ASSERT_TRUE(CompareDmfWithTruth(*slices_, maps, truth, 0.5, &given, ProgressCallback(), &errors).ok());
+  ASSERT_TRUE(CompareDmfWithTruth(*slices_, maps, truth, 0.5, &predicted).ok());
+  EXPECT_EQ(DmfComparisonJson(given), DmfComparisonJson(predicted));
 }
 
 // The same at the defaults of DmfMapFitOptions (Dai's 1 % of the points, raised to
