@@ -600,10 +600,8 @@ Status FitDualMicrofacetMaps(const DmfSliceSet& slices, const DmfMapFitOptions& 
         InterpolateLogNdf(maps->fits, c, maps->representative_ndf, p, grid.num_cells(), &f.log_ndf);
         f.ndf_interpolated = true;
         const DmfSlice slice = slices.Slice(p);
-        int used = 0;
-        f.k_s = std::exp(FitLogScale(slice, f, grid, options.point, &used));
+        const int used = ScaleShapeToSlice(slice, grid, options.point, &f);
         f.num_used = used;
-        f.log_rms_residual = LogRmsResidual(slice, f, grid, options.point);
         f.transmittance = kPi * f.rho_d + f.k_s * transmittance_per_k_s / weight_sum;
         // An interpolated NDF is as measured as its representatives' (weighted).
         if (used == 0) {

@@ -253,11 +253,9 @@ void SampleLogNdf(const Distribution& ndf, const DmfNdfGrid& grid, std::vector<d
 // integrated) and the status.
 bool ScaleLadderShape(const DmfSlice& slice, const DmfNdfGrid& grid, const DmfPointFitOptions& options,
                       double transmittance_per_k_s, DmfPointFit* out) {
-  int used = 0;
-  out->k_s = std::exp(FitLogScale(slice, *out, grid, options, &used));
+  const int used = ScaleShapeToSlice(slice, grid, options, out);
   if (used == 0) return false;
   out->num_used = used;
-  out->log_rms_residual = LogRmsResidual(slice, *out, grid, options);
   out->alpha_iterations = 0;
   out->transmittance = transmittance_per_k_s >= 0 ? kPi * out->rho_d + out->k_s * transmittance_per_k_s
                                                   : DirectionalTransmittance(*out, grid, options.eta, slice.o);

@@ -569,9 +569,11 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   return fit;
 }
 
-double PredictDualMicrofacet(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& i,
-                             const Eigen::Vector3d& o) {
-  if (fit.log_ndf.empty() || !(fit.k_s > 0)) return fit.rho_d;
+namespace {
+
+// Eq. 11 of a fit with k_s 1 and no diffuse term: the lobe's shape at (i, o); log_ndf not empty.
+double DualMicrofacetShape(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& i,
+                           const Eigen::Vector3d& o) {
   const UnitBtdf unit(UnitNdf{}, UnitShadowing{}, eta);
   const double a_top = unit.EvalTop(i, o), a_bottom = unit.EvalBottom(i, o);
   const Eigen::Vector3d h_top = unit.TopHalfVector(i, o), h_bottom = unit.BottomHalfVector(i, o);
@@ -583,7 +585,15 @@ double PredictDualMicrofacet(const DmfPointFit& fit, const DmfNdfGrid& grid, dou
   if (fit.alpha >= 1) rho = top;
   else if (fit.alpha <= 0) rho = bottom;
   else if (top > 0 && bottom > 0) rho = std::exp(fit.alpha * std::log(top) + (1 - fit.alpha) * std::log(bottom));
-  return fit.rho_d + fit.k_s * rho;
+  return rho;
+}
+
+}  // namespace
+
+double PredictDualMicrofacet(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& i,
+                             const Eigen::Vector3d& o) {
+  if (fit.log_ndf.empty() || !(fit.k_s > 0)) return fit.rho_d;
+  return fit.rho_d + fit.k_s * DualMicrofacetShape(fit, grid, eta, i, o);
 }
 
 double DirectionalTransmittance(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& o) {
@@ -602,34 +612,37 @@ double DirectionalTransmittance(const DmfPointFit& fit, const DmfNdfGrid& grid, 
   return sum * h * h;
 }
 
-double FitLogScale(const DmfSlice& slice, const DmfPointFit& shape, const DmfNdfGrid& grid,
-                   const DmfPointFitOptions& options, int* used) {
-  DmfPointFit unit = shape;
-  unit.k_s = 1;
-  unit.rho_d = 0;
+int ScaleShapeToSlice(const DmfSlice& slice, const DmfNdfGrid& grid, const DmfPointFitOptions& options,
+                      DmfPointFit* fit) {
+  const std::vector<int> usable = UsableTrainingDots(slice, options);
+  const bool has_ndf = !fit->log_ndf.empty();
+  std::vector<double> shape(usable.size(), 0.0);
+  if (has_ndf) {
+    for (size_t k = 0; k < usable.size(); ++k) {
+      shape[k] = DualMicrofacetShape(*fit, grid, options.eta, slice.i[usable[k]], slice.o);
+    }
+  }
+  // ln k_s: the mean log ratio of measurement to the unit-scale prediction, which is the shape.
   double sum = 0;
+  int used = 0;
+  for (size_t k = 0; k < usable.size(); ++k) {
+    if (!has_ndf || !(shape[k] > 0)) continue;
+    sum += std::log((slice.value[usable[k]] - slice.rho_d) / shape[k]);
+    ++used;
+  }
+  fit->k_s = std::exp(used > 0 ? sum / used : 0);
+  // The residual of the scaled prediction (PredictDualMicrofacet's arithmetic, less rho_d).
+  const bool scaled = has_ndf && fit->k_s > 0;
+  double sum_sq = 0;
   int n = 0;
-  for (int q : UsableTrainingDots(slice, options)) {
-    const double pred = PredictDualMicrofacet(unit, grid, options.eta, slice.i[q], slice.o);
+  for (size_t k = 0; k < usable.size(); ++k) {
+    const double pred = (scaled ? fit->rho_d + fit->k_s * shape[k] : fit->rho_d) - fit->rho_d;
     if (!(pred > 0)) continue;
-    sum += std::log((slice.value[q] - slice.rho_d) / pred);
+    sum_sq += Sqr(std::log((slice.value[usable[k]] - slice.rho_d) / pred));
     ++n;
   }
-  *used = n;
-  return n > 0 ? sum / n : 0;
-}
-
-double LogRmsResidual(const DmfSlice& slice, const DmfPointFit& fit, const DmfNdfGrid& grid,
-                      const DmfPointFitOptions& options) {
-  double sum = 0;
-  int n = 0;
-  for (int q : UsableTrainingDots(slice, options)) {
-    const double pred = PredictDualMicrofacet(fit, grid, options.eta, slice.i[q], slice.o) - fit.rho_d;
-    if (!(pred > 0)) continue;
-    sum += Sqr(std::log((slice.value[q] - slice.rho_d) / pred));
-    ++n;
-  }
-  return n > 0 ? std::sqrt(sum / n) : 0;
+  fit->log_rms_residual = n > 0 ? std::sqrt(sum_sq / n) : 0;
+  return used;
 }
 
 void PackDmfPointFit(const DmfPointFit& f, ByteWriter* out) {

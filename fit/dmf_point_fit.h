@@ -225,14 +225,13 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
 double PredictDualMicrofacet(const DmfPointFit& fit, const DmfNdfGrid& grid, double eta, const Eigen::Vector3d& i,
                              const Eigen::Vector3d& o);
 
-// ln k_s of the point of `slice` for a model shape (alpha, D, smith) borrowed from `shape`: the
-// mean log ratio of measurement to unit-scale prediction over the usable training dots (the
-// closed-form minimum of the Eq. 15 objective in ln k_s); `used` = dots that entered.
-double FitLogScale(const DmfSlice& slice, const DmfPointFit& shape, const DmfNdfGrid& grid,
-                   const DmfPointFitOptions& options, int* used);
-// RMS of the Eq. 15 log residuals of `fit` over the usable training dots.
-double LogRmsResidual(const DmfSlice& slice, const DmfPointFit& fit, const DmfNdfGrid& grid,
-                      const DmfPointFitOptions& options);
+// k_s of the point of `slice` for the model shape (alpha, D, smith_alpha) in *fit: the mean log
+// ratio of measurement to unit-scale prediction over the usable training dots (the closed-form
+// minimum of the Eq. 15 objective in ln k_s; 1 when no dot is usable), and log_rms_residual: the
+// RMS of the Eq. 15 log residuals with that k_s and fit->rho_d. One prediction per dot serves
+// both. Returns the dots that entered k_s.
+int ScaleShapeToSlice(const DmfSlice& slice, const DmfNdfGrid& grid, const DmfPointFitOptions& options,
+                      DmfPointFit* fit);
 
 // Relative RMS error of a prediction on the held-out dots of `slice` inside the lobe (measured
 // R - rho_d above `lobe_fraction` of the held-out peak): sqrt(sum (pred - meas)^2 / sum
