@@ -54,7 +54,6 @@ void UpdateShadowing(double smith_alpha, std::vector<Row>* rows) {
   }
 }
 
-// Solves Eqs. 16-17 (and Eq. 19 when `symmetric`) for ln D per cell at the given alpha.
 // The sparse LDLT of one point's Eq. 16-17 normal equations. Their pattern depends on the rows'
 // cells and on `symmetric`, not on alpha (a zero coefficient stays an entry), so the fill-reducing
 // ordering and symbolic analysis are done once per point and mode, and every alpha iteration only
@@ -64,6 +63,8 @@ struct NdfSolver {
   bool analyzed = false;
 };
 
+// Solves Eqs. 16-17 (and Eq. 19 when `symmetric`) for ln D per cell at the given alpha; `solver`
+// is the point's for this mode (the same rows every call).
 bool SolveNdf(const std::vector<Row>& rows, const DmfNdfGrid& grid, double alpha, double smoothness, bool symmetric,
               NdfSolver* solver, std::vector<double>* log_d_cells) {
   // Unknown index of a cell: mirror pairs share the smaller index under Eq. 19.

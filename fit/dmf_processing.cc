@@ -135,7 +135,7 @@ Status PlanDmfMemory(int num_points, int grid_width, int num_dots, int num_valid
   // Per point whatever the mode: its fit and clustering entries, the map images, the
   // rectifier's sub-samples, the validation dots' values, the stages' per-point vectors and
   // (under MPI; counted on one process too, the estimate stays an upper bound) the 9 bytes a
-  // point of the dot columns in flight of a round.
+  // point of each dot column in flight of a round.
   const double per_point = sizeof(DmfPointFit) + 4 * (4 + 8) + 24 * 4 + 16 * 4 + 3 * 8 +
                            Sqr(options.supersample) * 8.0 + 8.0 * num_validation_dots + 64 + 9.0 * kDotBracketsInFlight;
   // Whatever the grid: the process itself (about 100 MiB resident for a tiny fit: code, libraries,
@@ -492,7 +492,7 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     validation.positions.push_back(position);
   }
   // Each column stored in dot order on every process, whichever process measured it (issue #29:
-  // under mpirun the dots are shared out, one per process per round).
+  // under mpirun the dots are shared out, up to two per process per round).
   auto store = [&](const DotJob& job, const DotColumn& column) -> Status {
     if (job.check) CombineExposureChecks(column.check, &report->exposure_check);  // One bracket for all dots.
     report->num_frames += column.frames;
@@ -517,9 +517,10 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
   ProgressTracker progress(options.progress, "fit dmf: dot frames (HDR merge, Eq. 12)", static_cast<int64_t>(nd));
   std::map<int, DotColumn> columns;  // The round's, by job.
   DistributedLoop loop;
-  // A process measures kDotBracketsInFlight brackets at once: a bracket's frames are read and
-  // decoded on one thread (its merge and Eq. 12 run on all), so one at a time kept about 1.1 of
-  // the 2 cores busy at the paper's workload. The columns are stored in dot order (chunk_done).
+  // A process measures kDotBracketsInFlight brackets at once (at most --threads): a bracket's
+  // frames are read and decoded on one thread (its merge and Eq. 12 run on all), which left part
+  // of the cores idle (the paper's workload: 46 -> 40 s). The columns are stored in dot order
+  // (chunk_done), so the slices do not depend on the threads.
   const int in_flight = std::min(kDotBracketsInFlight, options.num_threads);
   loop.compute = [&](int begin, int end) -> Status {
     std::vector<DotColumn*> slots;
