@@ -154,6 +154,45 @@ TEST(DotScanRig, SmoothRegionSeesTheScreenThroughTheFlatSlab) {
   EXPECT_GT(checked, 50);
 }
 
+// A display whose black glows is the dot over a flat screen at the black level: light adds. The
+// glowing rig renders the pixels whose footprint misses the dot from the black level alone
+// (SimDotMonitor::BlackLevelRadiance, a cached share of the footprint on the screen); the flat
+// screen integrates every footprint over its lit pixels. Both sample states: the direct view
+// and, through the sample, the smooth regions' view and the scattered glow.
+TEST(DotScanRig, GlowingBlackIsAFlatScreenAtTheBlackLevel) {
+  constexpr double kBlack = 0.002;
+  auto render = [](double black, double dot_radiance, const std::string& pattern, const std::string& state) {
+    SyntheticDotScanOptions o = SmallOptions();
+    o.rig.black_radiance = black;
+    o.rig.dot_radiance = dot_radiance;
+    std::unique_ptr<SimDotMonitor> rig;
+    std::shared_ptr<const SlabSample> sample;
+    EXPECT_TRUE(BuildDotScanRig(o, &rig, &sample).ok());
+    EXPECT_TRUE(rig->SetSampleState(state).ok());
+    EXPECT_TRUE(rig->ShowPattern(pattern).ok());
+    return rig->RenderElectrons();
+  };
+  const double dot = SyntheticDotScanOptions().rig.dot_radiance;
+  for (const std::string state : {"none", "contaminated"}) {
+    const Image glowing = render(kBlack, dot, "dot:200.5,240.5", state);
+    const Image black = render(0, dot, "dot:200.5,240.5", state);
+    const Image flat = render(0, kBlack, "flat", state);
+    double worst = 0;
+    int glowing_pixels = 0;
+    for (int v = 0; v < glowing.height(); ++v) {
+      for (int u = 0; u < glowing.width(); ++u) {
+        const double sum = black.at(u, v) + flat.at(u, v);
+        worst = std::max(worst, std::abs(glowing.at(u, v) - sum) / std::max(sum, 1e-3));
+        glowing_pixels += black.at(u, v) == 0 && flat.at(u, v) > 0;
+      }
+    }
+    std::printf("%s: worst relative difference %.2e, %d pixels see the glow alone\n", state.c_str(), worst,
+                glowing_pixels);
+    EXPECT_LT(worst, 1e-5) << state;
+    EXPECT_GT(glowing_pixels, glowing.width() * glowing.height() / 5) << state;
+  }
+}
+
 TEST(DotScanRig, FramesAreDeterministicAndSeeded) {
   auto capture = [](uint64_t seed) {
     SyntheticDotScanOptions o = SmallOptions();

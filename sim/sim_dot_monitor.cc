@@ -305,6 +305,38 @@ double SimDotMonitor::DirectRadiance(const double* screen_map_entry, int s, int 
   return options_.black_radiance * mean.inside + options_.dot_radiance * mean.level;
 }
 
+bool SimDotMonitor::MissesLitPixels(const double* e) const {
+  if (lit_min_px_.x() > lit_max_px_.x()) return true;
+  // The pixel's footprint's half extents plus one monitor pixel: no sub-pixel footprint's
+  // bounding box reaches a lit pixel (MeanOverFootprint's sum stays exactly 0).
+  const double hx = 0.5 * (std::abs(e[2]) + std::abs(e[4])) + 1, hy = 0.5 * (std::abs(e[3]) + std::abs(e[5])) + 1;
+  return e[0] + hx < lit_min_px_.x() || e[0] - hx > lit_max_px_.x() || e[1] + hy < lit_min_px_.y() ||
+         e[1] - hy > lit_max_px_.y();
+}
+
+double SimDotMonitor::BlackLevelRadiance(size_t pixel, int s, int a, int b) const {
+  const size_t ss = static_cast<size_t>(s) * s;
+  if (screen_inside_.empty()) {
+    const size_t num_pixels = screen_map_.size() / 6;
+    screen_inside_.assign(num_pixels * ss, 0.0);
+    for (size_t p = 0; p < num_pixels; ++p) {
+      const double* e = &screen_map_[p * 6];
+      if (e[0] < -1e29) continue;
+      for (int i = 0; i < s; ++i) {
+        for (int j = 0; j < s; ++j) {
+          const double du = (j + 0.5) / s - 0.5, dv = (i + 0.5) / s - 0.5;
+          const Eigen::Vector2d centre(e[0] + du * e[2] + dv * e[4], e[1] + du * e[3] + dv * e[5]);
+          screen_inside_[p * ss + i * s + j] =
+              MeanOverFootprint(levels_, centre, Eigen::Vector2d(e[2], e[3]) / s, Eigen::Vector2d(e[4], e[5]) / s)
+                  .inside;
+        }
+      }
+    }
+  }
+  // DirectRadiance adds dot_radiance * 0 here, which leaves the sum unchanged.
+  return options_.black_radiance * screen_inside_[pixel * ss + a * s + b];
+}
+
 Image SimDotMonitor::RenderElectrons() const {
   if (sample_in_path()) return RenderElectronsThroughSample();
   const SimDotMonitorOptions& o = options_;
@@ -320,11 +352,14 @@ Image SimDotMonitor::RenderElectrons() const {
   Image out(cam.width_px, cam.height_px);
   for (int v = 0; v < cam.height_px; ++v) {
     for (int u = 0; u < cam.width_px; ++u) {
-      const double* e = &screen_map_[(static_cast<size_t>(v) * cam.width_px + u) * 6];
+      const size_t pixel = static_cast<size_t>(v) * cam.width_px + u;
+      const double* e = &screen_map_[pixel * 6];
       if (e[0] < -1e29) continue;
+      const bool black_only = MissesLitPixels(e);
+      if (black_only && o.black_radiance <= 0) continue;
       double sum = 0;
       for (int a = 0; a < s; ++a) {
-        for (int b = 0; b < s; ++b) sum += DirectRadiance(e, s, a, b);
+        for (int b = 0; b < s; ++b) sum += black_only ? BlackLevelRadiance(pixel, s, a, b) : DirectRadiance(e, s, a, b);
       }
       out.at(u, v) = static_cast<float>(sum / (s * s) * scale);
     }
@@ -459,30 +494,23 @@ Image SimDotMonitor::RenderElectronsThroughSample() const {
   const int s = o.render_supersample, ss = s * s;
   const double scale = o.electrons_per_radiance_us * camera_->integrated_exposure_us();
   Image out(cam.width_px, cam.height_px);
-  // Direct view (off the sample and through smooth regions), skipping pixels whose screen
-  // footprint misses every lit monitor pixel when the black level is 0.
-  const bool lit = lit_min_px_.x() <= lit_max_px_.x();
+  // Direct view (off the sample and through smooth regions); a pixel whose screen footprint
+  // misses every lit monitor pixel sees the black level alone (nothing when it is 0).
   for (int v = 0; v < cam.height_px; ++v) {
     for (int u = 0; u < cam.width_px; ++u) {
       const size_t pixel = static_cast<size_t>(v) * cam.width_px + u;
       if (!pixel_direct_[pixel]) continue;
       const double* e = &screen_map_[pixel * 6];
       if (e[0] < -1e29) continue;
-      if (o.black_radiance <= 0) {
-        if (!lit) continue;
-        const double hx = 0.5 * (std::abs(e[2]) + std::abs(e[4])) + 1, hy = 0.5 * (std::abs(e[3]) + std::abs(e[5])) + 1;
-        if (e[0] + hx < lit_min_px_.x() || e[0] - hx > lit_max_px_.x() || e[1] + hy < lit_min_px_.y() ||
-            e[1] - hy > lit_max_px_.y()) {
-          continue;
-        }
-      }
+      const bool black_only = MissesLitPixels(e);
+      if (black_only && o.black_radiance <= 0) continue;
       const float* w = &direct_weights_[pixel * ss];
       double sum = 0;
       for (int a = 0; a < s; ++a) {
         for (int b = 0; b < s; ++b) {
           const float wk = w[a * s + b];
           if (wk <= 0) continue;
-          sum += wk * DirectRadiance(e, s, a, b);
+          sum += wk * (black_only ? BlackLevelRadiance(pixel, s, a, b) : DirectRadiance(e, s, a, b));
         }
       }
       out.at(u, v) = static_cast<float>(sum / ss * scale);
