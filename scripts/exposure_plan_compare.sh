@@ -1,16 +1,17 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
-# The exposure-planning measurement of docs/acquisition.md ("Exposure planning"): a 10 x 10 dot
+# The exposure-planning measurement of docs/acquisition.md ("Exposure planning"): a 10 x 10 (or 20 x 20) dot
 # scan of the simulated nine-region sample on the linear display, black 0 with the fixed bracket,
 # 0.2 % black with the fixed bracket and with --exposures-us auto; each fitted at a 4 mm map
 # with held-out dots (the planned run also plans its frames at the longest exposure, 4 here).
-# Usage: bash scripts/exposure_plan_compare.sh OUTDIR (about 1 minute).
+# Usage: [DOTS=20] [SEED=6] bash scripts/exposure_plan_compare.sh OUTDIR (10 x 10 dots, seed 5 by
+# default: about 1 minute; 20 x 20 dots: about 2 minutes).
 set -euo pipefail
 out=${1:?usage: exposure_plan_compare.sh OUTDIR}
 T=${THINSLAB:-build/app/thinslab}
 mkdir -p "$out"
 base="acquire dot-scan --quiet --sim-sample true --sim-photons-k 100 --camera-width-px 240 --camera-height-px 180
-      --grid-nx 10 --grid-ny 10 --sim-display-transfer linear --seed 5"
+      --grid-nx ${DOTS:-10} --grid-ny ${DOTS:-10} --sim-display-transfer linear --seed ${SEED:-5}"
 run() {
   local name=$1; shift
   $T $base "$@" "$out/$name" > "$out/$name.acquire.log"

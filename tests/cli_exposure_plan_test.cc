@@ -71,12 +71,26 @@ TEST(CliExposurePlan, TheProbesPlanIsInTheManifestAndKeepsTheBrightestStateUnsat
 // plan adds there is frames at the longest exposure (the glow's shot noise falls as 1/sqrt(N));
 // a longer exposure would saturate the glow. 10 x 10 dots of the nine-region sample, a 4 mm map
 // with every other dot held out, seed 5 (docs/acquisition.md, "Exposure planning").
-int CorrectPoints(const std::string& capture) {
+// Summed over the regions of comparison.json: "ok" (status ok or interpolated) or "correct".
+int CountPoints(const std::string& capture, const std::string& key) {
   std::ifstream in(fs::path(capture) / "fit" / "dmf" / "comparison.json");
   const nlohmann::json comparison = nlohmann::json::parse(in);
-  int correct = 0;
-  for (const nlohmann::json& region : comparison.at("regions")) correct += region.value("correct", 0);
-  return correct;
+  int count = 0;
+  for (const nlohmann::json& region : comparison.at("regions")) count += region.value(key, 0);
+  return count;
+}
+
+// A glowing display's scans fitted at a 4 mm map with every other dot held out: the counts of
+// points with status ok and of correct points.
+struct GlowScanCounts {
+  int ok = 0, correct = 0;
+};
+GlowScanCounts AcquireAndFit(const std::string& scan, const std::string& options, const std::string& capture) {
+  RunResult r = RunThinslab(scan + options + " " + capture);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = RunThinslab("fit dmf --quiet --pitch-mm 4 --hold-out true " + capture);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  return {CountPoints(capture, "ok"), CountPoints(capture, "correct")};
 }
 
 TEST(CliExposurePlanGlow, PlannedFramesFitAsManyPointsAsABlackDisplay) {
@@ -85,12 +99,7 @@ TEST(CliExposurePlanGlow, PlannedFramesFitAsManyPointsAsABlackDisplay) {
       "acquire dot-scan --quiet --sim-sample true --sim-photons-k 100 --camera-width-px 240 --camera-height-px 180 "
       "--grid-nx 10 --grid-ny 10 --sim-display-transfer linear --seed 5 ";
   auto acquire_and_fit = [&](const std::string& name, const std::string& options) {
-    const std::string capture = dir / name;
-    RunResult r = RunThinslab(scan + options + " " + capture);
-    EXPECT_EQ(r.exit_code, 0) << r.output;
-    r = RunThinslab("fit dmf --quiet --pitch-mm 4 --hold-out true " + capture);
-    EXPECT_EQ(r.exit_code, 0) << r.output;
-    return CorrectPoints(capture);
+    return AcquireAndFit(scan, options, dir / name).correct;
   };
   const int black = acquire_and_fit("black", "--exposures-us 11765,9411765 --sim-display-black 0");
   const int glow_fixed = acquire_and_fit("glow_fixed", "--exposures-us 11765,9411765");
@@ -111,6 +120,31 @@ TEST(CliExposurePlanGlow, PlannedFramesFitAsManyPointsAsABlackDisplay) {
   r = RunThinslab(scan + "--exposures-us auto --longest-exposure-frames 2 " + dir / "both");
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_TRUE(Has(r.output, "--longest-exposure-frames")) << r.output;
+}
+
+// The goal counts points fitted with status ok. At 10 x 10 dots (above) it is not met:
+// that density is the dot-scan fit's sparse boundary (docs/stability.md, "Sparse lights"),
+// where the measured-fraction flag (status 7) sits inside one continuum of right points and the
+// glow's 0.02-0.04 lower fractions move some across it. At 20 x 20 dots over the same monitor
+// the planned scan on the glowing display fits as many points with status ok as the fixed
+// bracket on the black display, and as many right; the fixed bracket on the glowing display
+// fewer. Measured 2026-12-07 over seeds 5-8 (docs/acquisition.md): ok 150.0 black, 150.5 planned,
+// 142.0 glow fixed (planned / black 0.993-1.020 per seed); correct 154.0, 154.25, 149.25.
+TEST(CliExposurePlanGlow, PlannedFramesFitAsManyPointsOkAsABlackDisplayAt20x20Dots) {
+  TempDir dir;
+  const std::string scan =
+      "acquire dot-scan --quiet --sim-sample true --sim-photons-k 100 --camera-width-px 240 --camera-height-px 180 "
+      "--grid-nx 20 --grid-ny 20 --sim-display-transfer linear --seed 5 ";
+  const GlowScanCounts black = AcquireAndFit(scan, "--exposures-us 11765,9411765 --sim-display-black 0", dir / "black");
+  const GlowScanCounts fixed = AcquireAndFit(scan, "--exposures-us 11765,9411765", dir / "glow_fixed");
+  const GlowScanCounts planned =
+      AcquireAndFit(scan, "--exposures-us auto --max-exposure-us 9411765", dir / "glow_planned");
+  // Seed 5, 2026-12-07: ok 150 / 137 / 150, correct 154 / 147 / 154.
+  std::cout << "ok points: black " << black.ok << ", glow fixed " << fixed.ok << ", glow planned " << planned.ok
+            << "; correct: " << black.correct << ", " << fixed.correct << ", " << planned.correct << "\n";
+  EXPECT_GE(planned.ok, 0.98 * black.ok);
+  EXPECT_GE(planned.correct, 0.95 * black.correct);
+  EXPECT_GT(planned.ok, fixed.ok);
 }
 
 // `acquire laser --exposures-us auto`: a laser 30x brighter than the one the fixed bracket was
