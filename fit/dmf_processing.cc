@@ -438,11 +438,14 @@ Status PrepareDotScanSlices(const std::string& session_dir, const DmfProcessingO
     ExposureCheck check;
     int frames = 0, exposures = 0;
   };
+  // --threads reaches the merge too (rows are independent: the same result on any count).
+  HdrMergeOptions merge_options;
+  merge_options.num_threads = options.num_threads;
   auto measure = [&](const DotJob& job, DotColumn* column) -> Status {
     HdrImage hdr;
     SessionMergeInfo info;
     THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, *job.frames, dark_frames, response,
-                                                 HdrMergeOptions(), 1.0, report->noise, &hdr, &info,
+                                                 merge_options, 1.0, report->noise, &hdr, &info,
                                                  job.check ? ExposureCheckMode::kCheck : ExposureCheckMode::kNone)
                                  .WithContext(job.name));
     column->check = info.exposure_check;
