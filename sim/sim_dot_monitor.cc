@@ -11,7 +11,6 @@
 #include "thinslab/drivers/pattern_id.h"
 #include "thinslab/sim/sim_board_camera.h"
 #include "thinslab/sim/sim_chessboard.h"
-#include "thinslab/sim/screen_footprint.h"
 
 namespace thinslab {
 
@@ -293,15 +292,17 @@ void SimDotMonitor::BuildScreenMap() const {
   }
 }
 
-double SimDotMonitor::DirectRadiance(const double* screen_map_entry, int s, int a, int b) const {
+ScreenFootprintMean SimDotMonitor::SubPixelFootprintMean(const double* e, int s, int a, int b) const {
   // Sub-pixel (a, b) of s x s: its footprint on the screen under the pixel's affine map. Each
   // monitor pixel is a uniform emitter (the pixelated display the real window draws), the bezel
   // is black, and the footprint's mean radiance is integrated exactly (sim/screen_footprint.h).
-  const double* e = screen_map_entry;
   const double du = (b + 0.5) / s - 0.5, dv = (a + 0.5) / s - 0.5;
   const Eigen::Vector2d centre(e[0] + du * e[2] + dv * e[4], e[1] + du * e[3] + dv * e[5]);
-  const ScreenFootprintMean mean =
-      MeanOverFootprint(levels_, centre, Eigen::Vector2d(e[2], e[3]) / s, Eigen::Vector2d(e[4], e[5]) / s);
+  return MeanOverFootprint(levels_, centre, Eigen::Vector2d(e[2], e[3]) / s, Eigen::Vector2d(e[4], e[5]) / s);
+}
+
+double SimDotMonitor::DirectRadiance(const double* screen_map_entry, int s, int a, int b) const {
+  const ScreenFootprintMean mean = SubPixelFootprintMean(screen_map_entry, s, a, b);
   return options_.black_radiance * mean.inside + options_.dot_radiance * mean.level;
 }
 
@@ -323,13 +324,7 @@ double SimDotMonitor::BlackLevelRadiance(size_t pixel, int s, int a, int b) cons
       const double* e = &screen_map_[p * 6];
       if (e[0] < -1e29) continue;
       for (int i = 0; i < s; ++i) {
-        for (int j = 0; j < s; ++j) {
-          const double du = (j + 0.5) / s - 0.5, dv = (i + 0.5) / s - 0.5;
-          const Eigen::Vector2d centre(e[0] + du * e[2] + dv * e[4], e[1] + du * e[3] + dv * e[5]);
-          screen_inside_[p * ss + i * s + j] =
-              MeanOverFootprint(levels_, centre, Eigen::Vector2d(e[2], e[3]) / s, Eigen::Vector2d(e[4], e[5]) / s)
-                  .inside;
-        }
+        for (int j = 0; j < s; ++j) screen_inside_[p * ss + i * s + j] = SubPixelFootprintMean(e, s, i, j).inside;
       }
     }
   }

@@ -31,12 +31,13 @@
 #include <string>
 #include <vector>
 
+#include "thinslab/acquire/shadow_map_session.h"
 #include "thinslab/core/image.h"
 #include "thinslab/core/session.h"
-#include "thinslab/acquire/shadow_map_session.h"
 #include "thinslab/drivers/camera.h"
 #include "thinslab/drivers/display.h"
 #include "thinslab/drivers/display_gamma.h"
+#include "thinslab/sim/screen_footprint.h"
 #include "thinslab/sim/sensor_model.h"
 #include "thinslab/sim/sim_display_transfer.h"
 #include "thinslab/sim/slab_sample.h"
@@ -182,6 +183,7 @@ class SimDotMonitor : public Projector {
   // Mean radiance the screen sends into sub-pixel (a, b) of s x s of the pixel whose screen_map_
   // entry (6 doubles) is given.
   double DirectRadiance(const double* screen_map_entry, int s, int a, int b) const;
+  ScreenFootprintMean SubPixelFootprintMean(const double* screen_map_entry, int s, int a, int b) const;
   // DirectRadiance of sub-pixel (a, b) of `pixel` whose footprint (screen_map_ entry e) misses
   // every lit monitor pixel: the black level alone, bit for bit DirectRadiance's value, from the
   // footprint's share on the screen cached per sub-pixel (a displayed pattern does not change
