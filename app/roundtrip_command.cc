@@ -16,11 +16,13 @@ namespace thinslab {
 int RunRoundTrip(int argc, char** argv) {
   RoundTripRun run;
   OptionParser parser("roundtrip");
-  parser.AddPositional("CAPTURE", &run.session_dir, "shadow-map capture whose rig the render reproduces");
-  parser.AddString("fit", &run.fit_dir, "output folder of `thinslab fit tau` (default CAPTURE/fit/tau)");
+  parser.AddPositional("CAPTURE", &run.session_dir, "shadow-map or laser-lobe capture whose rig the render reproduces");
+  parser.AddString("fit", &run.fit_dir,
+                   "output folder of `thinslab fit tau` or `fit phase` (default CAPTURE/fit/tau or CAPTURE/fit/phase)");
   parser.AddString("out", &run.out_dir, "output folder (default CAPTURE/fit/roundtrip)");
   parser.AddString("blender", &run.blender, "the Blender executable (a name on PATH or a path)");
-  parser.AddInt("samples", &run.samples, "Cycles samples per pixel of each of the three renders");
+  parser.AddInt("samples", &run.samples,
+                "Cycles samples per pixel of each render (0: 32 for shadow maps, 8192 for laser lobes)");
   parser.AddInt("downsample", &run.downsample, "camera pixels per rendered pixel along each axis");
   AddCalibrationOptions(&parser, &run.calibration);
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);

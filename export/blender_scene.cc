@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/export/blender_scene.h"
 
+#include <algorithm>
 #include <sstream>
 
 #include "thinslab/core/file.h"
@@ -37,7 +38,8 @@ def parse_args():
     parser.add_argument("--resolution-percent", type=int, default=100, help="image size in percent")
     parser.add_argument("--passes", metavar="PREFIX",
                         help="the round trip's renders (32-bit EXR): PREFIX_reference.exr without the layer, "
-                             "PREFIX_shadow_1.exr and PREFIX_shadow_2.exr with it (two independent seeds)")
+                             "PREFIX_shadow_1.exr and PREFIX_shadow_2.exr with it (two independent seeds); for a "
+                             "laser probe PREFIX_lobe_1.exr and PREFIX_lobe_2.exr (multilayer: a pass per ring)")
     return parser.parse_args(argv)
 
 
@@ -111,13 +113,19 @@ def glass(name, eta, distribution, alpha_texture):
 def layer_volume(layer, thickness):
     material, nodes, links = new_material("layer")
     output = nodes.new("ShaderNodeOutputMaterial")
-    coordinates = nodes.new("ShaderNodeTexCoord")
-    flip = nodes.new("ShaderNodeMapping")  # Generated y runs 0..1 from min y; the image's row 0 is v = 1.
-    flip.inputs["Scale"].default_value = (1.0, -1.0, 1.0)
-    flip.inputs["Location"].default_value = (0.0, 1.0, 0.0)
-    tau = data_image(nodes, layer["tau"])
-    links.new(coordinates.outputs["Generated"], flip.inputs["Vector"])
-    links.new(flip.outputs["Vector"], tau.inputs["Vector"])
+    if layer["tau"]:
+        coordinates = nodes.new("ShaderNodeTexCoord")
+        flip = nodes.new("ShaderNodeMapping")  # Generated y runs 0..1 from min y; the image's row 0 is v = 1.
+        flip.inputs["Scale"].default_value = (1.0, -1.0, 1.0)
+        flip.inputs["Location"].default_value = (0.0, 1.0, 0.0)
+        tau = data_image(nodes, layer["tau"])
+        links.new(coordinates.outputs["Generated"], flip.inputs["Vector"])
+        links.new(flip.outputs["Vector"], tau.inputs["Vector"])
+        tau_output = tau.outputs["Color"]
+    else:  # A uniform layer: a constant density, which Cycles samples as a homogeneous volume.
+        tau = nodes.new("ShaderNodeValue")
+        tau.outputs[0].default_value = layer["uniform_tau"]
+        tau_output = tau.outputs[0]
     scatter = nodes.new("ShaderNodeVolumeScatter")
     scatter.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     scatter.inputs["Anisotropy"].default_value = layer["g"]
@@ -127,7 +135,7 @@ def layer_volume(layer, thickness):
         density = nodes.new("ShaderNodeMath")
         density.operation = "MULTIPLY"
         density.inputs[1].default_value = per_metre
-        links.new(tau.outputs["Color"], density.inputs[0])
+        links.new(tau_output, density.inputs[0])
         links.new(density.outputs[0], shader.inputs["Density"])
     both = nodes.new("ShaderNodeAddShader")
     links.new(scatter.outputs[0], both.inputs[0])
@@ -175,6 +183,42 @@ def shadow_rig(rig):
     orient(link(bpy.data.objects.new("projector", sun)), [-c for c in rig["light_propagation"]], (0.0, 0.0, 1.0))
 
 
+def annulus(name, centre, inner, outer, z, segments=128):
+    mesh = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    ring = [[bm.verts.new((centre[0] + r * math.cos(2 * math.pi * k / segments),
+                           centre[1] + r * math.sin(2 * math.pi * k / segments), z)) for k in range(segments)]
+            for r in (inner, outer)]
+    for k in range(segments):
+        j = (k + 1) % segments
+        bm.faces.new([ring[0][k], ring[1][k], ring[1][j], ring[0][j]])  # Normal +z: towards the layer.
+    bm.to_mesh(mesh)
+    bm.free()
+    return link(bpy.data.objects.new(name, mesh))
+
+
+def laser_probe(probe):
+    """The laser rig by reciprocity (render_scene.h LaserProbe): ring k of the board is a
+    Lambertian emitter of radiance 1 in light group ring<k>, seen through the layer by an
+    orthographic camera looking along the beam over its cross-section."""
+    view_layer = bpy.context.scene.view_layers[0]
+    material = emission("ring")
+    for k, (inner, outer) in enumerate(probe["rings"]):
+        ring = annulus("ring%d" % k, probe["beam_centre"], inner, outer, -probe["board_distance"])
+        ring.data.materials.append(material)
+        ring.visible_camera = False
+        view_layer.lightgroups.add(name="ring%d" % k)
+        ring.lightgroup = "ring%d" % k
+    camera_data = bpy.data.cameras.new("camera")
+    camera_data.type = "ORTHO"
+    camera_data.ortho_scale = probe["view_size"]
+    camera_data.clip_start = 1e-5
+    camera_data.clip_end = 100.0
+    camera = link(bpy.data.objects.new("camera", camera_data))
+    camera.location = (probe["beam_centre"][0], probe["beam_centre"][1], probe["board_distance"])
+    return camera
+
+
 def build():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -202,7 +246,12 @@ def build():
             glass("slab_monitor_side", slab["eta"], slab["distribution"], slab["top_alpha"]))
     layer = SCENE["layer"]
     rig = SCENE["shadow_rig"]
-    if layer and rig:
+    probe = SCENE["laser_probe"]
+    if layer and probe:
+        # Seen by the probe camera: its rays cross the layer along the beam.
+        thickness = min(layer["thickness"], 0.5 * probe["board_distance"])
+        box("layer", lo, hi, -thickness, 0.0).data.materials.append(layer_volume(layer, thickness))
+    elif layer and rig:
         # On the pane's board side and seen by light only: the camera views the board directly.
         thickness = min(layer["thickness"], 0.5 * rig["board_distance"])
         volume = box("layer", lo, hi, -thickness, 0.0)
@@ -214,6 +263,12 @@ def build():
         top = -1e-6  # 1 um below the layer: coincident surfaces would intersect ambiguously.
         rectangle("pane_camera_side", lo, hi, top, False).data.materials.append(pane)
         rectangle("pane_monitor_side", lo, hi, top - layer["glass_thickness"], True).data.materials.append(pane)
+    if probe:
+        scene.render.resolution_x = scene.render.resolution_y = probe["image"]
+        scene.cycles.pixel_filter_type = "BOX"
+        scene.cycles.filter_width = 1.0
+        scene.camera = laser_probe(probe)
+        return scene
     if rig:
         shadow_rig(rig)
         scene.cycles.pixel_filter_type = "BOX"  # A camera pixel integrates its own square.
@@ -263,7 +318,11 @@ def main():
     if args.passes:
         scene.render.image_settings.file_format = "OPEN_EXR"
         scene.render.image_settings.color_depth = "32"
-        for name, seed, with_layer in (("reference", 0, False), ("shadow_1", 1, True), ("shadow_2", 2, True)):
+        if SCENE["laser_probe"]:  # Two seeds; each ring's light group is a pass of the multilayer EXR.
+            scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
+        passes = (("lobe_1", 1, True), ("lobe_2", 2, True)) if SCENE["laser_probe"] else (
+            ("reference", 0, False), ("shadow_1", 1, True), ("shadow_2", 2, True))
+        for name, seed, with_layer in passes:
             for obj in scene.objects:
                 if obj.name == "layer":
                     obj.hide_render = not with_layer
@@ -290,7 +349,8 @@ std::string BlenderScript(const RenderScene& scene, const SceneTextures& texture
   for (const std::string& note : scene.notes) out << "# - " << OneLine(note) << "\n";
   out << "#\n# blender -b --factory-startup --python-exit-code 1 --python scene.py -- [--save FILE.blend] "
          "[--render FILE.png] [--samples N]\n"
-      << "import argparse\nimport os\nimport sys\n\nimport bmesh\nimport bpy\nfrom mathutils import Matrix, Vector\n\n"
+      << "import argparse\nimport math\nimport os\nimport sys\n\nimport bmesh\nimport bpy\nfrom mathutils import "
+         "Matrix, Vector\n\n"
       << "SCENE = {\n"
       << "    \"grid_min\": " << Tuple(scene.grid.min_m) << ",\n"
       << "    \"grid_size\": " << Tuple(scene.grid.size_m()) << ",\n"
@@ -315,6 +375,19 @@ std::string BlenderScript(const RenderScene& scene, const SceneTextures& texture
   } else {
     out << "    \"shadow_rig\": None,\n";
   }
+  if (scene.laser_probe) {
+    const LaserProbe& probe = *scene.laser_probe;
+    out << "    \"laser_probe\": {\"board_distance\": " << SceneNumber(probe.board_distance_m)
+        << ", \"beam_centre\": " << Tuple(probe.beam_centre_m) << ", \"view_size\": " << SceneNumber(probe.view_size_m)
+        << ", \"image\": " << probe.image_px << ",\n        \"rings\": [";
+    for (size_t k = 0; k < probe.ring_inner_m.size(); ++k) {
+      out << (k ? ", " : "") << "(" << SceneNumber(probe.ring_inner_m[k]) << ", " << SceneNumber(probe.ring_outer_m[k])
+          << ")";
+    }
+    out << "]},\n";
+  } else {
+    out << "    \"laser_probe\": None,\n";
+  }
   if (scene.slab) {
     const RoughSlab& slab = *scene.slab;
     out << "    \"slab\": {\"eta\": " << SceneNumber(slab.eta) << ", \"thickness\": " << SceneNumber(slab.thickness_m)
@@ -325,7 +398,8 @@ std::string BlenderScript(const RenderScene& scene, const SceneTextures& texture
   }
   if (scene.layer) {
     const ScatteringLayer& layer = *scene.layer;
-    out << "    \"layer\": {\"tau\": \"" << textures.tau << "\", \"g\": " << SceneNumber(layer.g)
+    out << "    \"layer\": {\"tau\": " << (textures.tau.empty() ? "None" : "\"" + textures.tau + "\"")
+        << ", \"uniform_tau\": " << SceneNumber(std::max(layer.uniform_tau, 0.0)) << ", \"g\": " << SceneNumber(layer.g)
         << ", \"albedo\": " << SceneNumber(layer.albedo) << ", \"thickness\": " << SceneNumber(layer.thickness_m)
         << ", \"glass_eta\": " << SceneNumber(layer.glass_eta)
         << ", \"glass_thickness\": " << SceneNumber(layer.glass_thickness_m) << "},\n";

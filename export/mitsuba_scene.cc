@@ -169,6 +169,11 @@ std::string MitsubaSceneXml(const RenderScene& scene, const SceneTextures& textu
 }
 
 Status WriteMitsubaScene(const RenderScene& scene, const std::string& dir, const Provenance& provenance) {
+  if (scene.laser_probe || (scene.layer && scene.layer->tau.empty())) {
+    return Status::Error(dir +
+                         ": the laser-lobe round trip's scene (a uniform layer seen by reciprocity) is written "
+                         "for Blender only");
+  }
   SceneTextures textures;
   THINSLAB_RETURN_IF_ERROR(WriteSceneTextures(scene, dir, provenance, &textures));
   std::string volume_file;

@@ -42,7 +42,8 @@ struct RoughSlab {
 // extinction is tau / thickness (so its optical thickness along z is the fitted tau), its
 // phase function Henyey-Greenstein with `g`, its single-scattering albedo `albedo`.
 struct ScatteringLayer {
-  Image tau;  // Channel Y, >= 0.
+  Image tau;                // Channel Y, >= 0; empty for a uniform layer.
+  double uniform_tau = -1;  // >= 0 with an empty `tau`: the layer's tau everywhere (Blender only).
   double g = 0, albedo = 0;
   double thickness_m = 1e-4;
   double glass_eta = 1.5, glass_thickness_m = 3e-3;
@@ -58,6 +59,27 @@ struct ShadowRig {
   double board_distance_m = 0;
   double board_albedo = 0.8;
   Eigen::Vector3d light_propagation = Eigen::Vector3d(0, 0, -1);  // Unit: the direction the light travels.
+};
+
+// The capture's laser-lobe rig (Gu et al. 2007, Fig. 9b; export/lobe_round_trip.h) rendered by
+// reciprocity. A collimated beam along -z of Gaussian profile (1/e^2 radius beam_radius_m)
+// crosses the layer at beam_centre_m and the scattered light lands on a Lambertian board at z =
+// -board_distance_m, where the camera measures rings of it. Traced from a camera, a board point
+// finds the beam's spot in the layer on about (r_b / d)^2 cos^4(theta) of its paths (1e-5 at 60
+// degrees): too few for rings. Light transport is reciprocal (HG phase functions are symmetric),
+// so each ring is rendered as a Lambertian emitter of radiance 1 in its own light group, and an
+// orthographic camera looking along the beam over its cross-section (view_size_m square,
+// centred on the beam) receives, per ring, the light the beam would put on that ring: the ring's
+// mean irradiance is proportional to the sum over the image of (beam profile x radiance) / ring
+// area. No board, camera or pane faces are drawn: the sim and Eq. 8 leave out their
+// interreflections.
+struct LaserProbe {
+  double board_distance_m = 0;
+  double beam_radius_m = 0;
+  Eigen::Vector2d beam_centre_m = Eigen::Vector2d::Zero();
+  std::vector<double> ring_inner_m, ring_outer_m;  // Ring k spans [inner, outer) from the centre.
+  double view_size_m = 0;
+  int image_px = 16;
 };
 
 // Pinhole intrinsics of the rig camera in pixels of image_width x image_height (OpenCV: pixel
@@ -85,6 +107,7 @@ struct RenderScene {
   double backlight_distance_m = 0.04;
   double backlight_half_size_m = 0.1;
   std::optional<ShadowRig> shadow_rig;
+  std::optional<LaserProbe> laser_probe;  // Replaces the camera and lights (Blender only).
   std::string source;              // The fit folder.
   std::vector<std::string> notes;  // What the export approximated (written beside the scene).
 };

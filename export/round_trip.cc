@@ -1,24 +1,21 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "thinslab/export/round_trip.h"
 
-#include <signal.h>
-
-#include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <sstream>
-#include <thread>
 #include <vector>
 
 #include "thinslab/core/exr_io.h"
 #include "thinslab/core/false_color.h"
 #include "thinslab/core/file.h"
 #include "thinslab/core/png_io.h"
-#include "thinslab/core/process.h"
 #include "thinslab/core/provenance.h"
 #include "thinslab/core/session_io.h"
+#include "thinslab/export/blender_render.h"
 #include "thinslab/export/blender_scene.h"
+#include "thinslab/export/lobe_round_trip.h"
+#include "thinslab/export/round_trip_outputs.h"
 #include "thinslab/export/scene_from_fit.h"
 #include "thinslab/pipeline/capture_reading.h"
 #include "thinslab/pipeline/prediction_report.h"
@@ -26,32 +23,6 @@
 namespace thinslab {
 
 namespace {
-
-// The luminance of a Blender render (R, G and B are equal in the grey scene).
-Status ReadRender(const std::string& path, int width, int height, Image* out) {
-  Image render;
-  THINSLAB_RETURN_IF_ERROR(ReadExr(path, &render));
-  int r = 0, g = 0, b = 0;
-  THINSLAB_RETURN_IF_ERROR(RequireChannel(render, path, "R", &r));
-  THINSLAB_RETURN_IF_ERROR(RequireChannel(render, path, "G", &g));
-  THINSLAB_RETURN_IF_ERROR(RequireChannel(render, path, "B", &b));
-  if (render.width() != width || render.height() != height) {
-    return Status::Error(path + ": Blender rendered " + std::to_string(render.width()) + "x" +
-                         std::to_string(render.height()) + " px, the scene asks for " + std::to_string(width) + "x" +
-                         std::to_string(height));
-  }
-  *out = Image(width, height);
-  for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) {
-      const double v = (render.at(x, y, r) + render.at(x, y, g) + render.at(x, y, b)) / 3;
-      if (!std::isfinite(v) || v < 0)
-        return Status::Error(path + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) +
-                             ") is not a finite radiance");
-      out->at(x, y) = static_cast<float>(v);
-    }
-  }
-  return Status::Ok();
-}
 
 // The capture's camera image averaged over n x n blocks: a block is valid when all its pixels are.
 struct BlockImages {
@@ -120,19 +91,11 @@ nlohmann::json RoundTripRegionsJson(const std::vector<ShadowPredictionRegion>& r
   return regions;
 }
 
-std::string Fixed(double v, int digits = 4) {
-  if (v < 0) return "-";
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(digits);
-  s << v;
-  return s.str();
-}
-
 }  // namespace
 
 Status RoundTripRun::Check() const {
-  if (!(samples >= 1 && samples <= 65536)) return Status::Error("--samples: must be 1 to 65536");
+  if (!(samples >= 0 && samples <= 65536))
+    return Status::Error("--samples: must be 0 (the capture kind's default) to 65536");
   if (!(downsample >= 1 && downsample <= 64)) return Status::Error("--downsample: must be 1 to 64");
   if (blender.empty()) return Status::Error("--blender: empty");
   return Status::Ok();
@@ -142,41 +105,7 @@ namespace {
 
 // The render's passes: reference, shadow 1 and 2 (export/blender_scene's --passes).
 constexpr int kRenderPasses = 3;
-
-// Samples rendered so far, read from Cycles' log: passes finished ("Saved: '...'" lines) times
-// `samples`, plus the last "Sample N/M" of the pass under way.
-int64_t RenderedSamples(const std::string& log_text, int samples) {
-  int64_t done = 0;
-  size_t pass_start = 0;
-  for (size_t at = log_text.find("Saved: '"); at != std::string::npos; at = log_text.find("Saved: '", at + 1)) {
-    done += samples;
-    pass_start = at;
-  }
-  const size_t sample = log_text.rfind("| Sample ");
-  if (sample != std::string::npos && sample > pass_start) done += std::atoi(log_text.c_str() + sample + 9);
-  return done;
-}
-
-// Waits for Blender, reporting its samples every half second; a cancel stops it (SIGTERM).
-Status WaitForRender(pid_t blender, const std::string& log_path, int passes, int samples,
-                     const ProgressCallback& progress, int* exit_code) {
-  ProgressTracker tracker(progress, "roundtrip: Blender render (" + std::to_string(passes) + " passes)",
-                          static_cast<int64_t>(passes) * samples);
-  for (;;) {
-    bool ended = false;
-    THINSLAB_RETURN_IF_ERROR(PollProgram(blender, &ended, exit_code));
-    std::string text;
-    if (progress && ReadFileToString(log_path, &text).ok() && !tracker.Report(RenderedSamples(text, samples))) {
-      if (!ended) {
-        kill(blender, SIGTERM);
-        THINSLAB_RETURN_IF_ERROR(WaitProgram(blender, nullptr, exit_code));
-      }
-      return Status::Error("RenderRoundTrip: cancelled");
-    }
-    if (ended) return Status::Ok();
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  }
-}
+constexpr int kDefaultShadowSamples = 32;
 
 }  // namespace
 
@@ -186,11 +115,13 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   Session session;
   THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(run.session_dir, run.allow_incomplete_capture, &session));
   const std::string manifest = JoinPath(run.session_dir, kSessionManifestName);
+  if (session.kind == "laser_lobe") return RenderLobeRoundTrip(run, session, log);
   if (session.kind != "shadow_map") {
     return Status::Error(manifest + ": kind \"" + session.kind +
-                         "\": the render round trip covers shadow-map captures and their `fit tau` (laser lobes "
-                         "and dot scans are not rendered yet, docs/export.md)");
+                         "\": the render round trip covers shadow-map captures with their `fit tau` and laser-lobe "
+                         "captures with their `fit phase` (dot scans are not rendered yet, docs/export.md)");
   }
+  const int samples = run.samples > 0 ? run.samples : kDefaultShadowSamples;
   const std::string fit_dir = run.fit_dir.empty() ? JoinPath(JoinPath(run.session_dir, "fit"), "tau") : run.fit_dir;
   if (!FileExists(JoinPath(fit_dir, "tau.exr"))) {
     return Status::Error(fit_dir +
@@ -252,31 +183,15 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   THINSLAB_RETURN_IF_ERROR(CreateDirectories(scene_dir));
   const Provenance provenance{"roundtrip", run.session_dir, fit_dir, run.options_ini};
   THINSLAB_RETURN_IF_ERROR(WriteBlenderScene(scene, scene_dir, provenance));
-  const std::string blender_log = JoinPath(scene_dir, "blender.log");
   const std::string prefix = JoinPath(scene_dir, "render");
-  log << "roundtrip: rendering " << width << "x" << height << " px at " << run.samples << " samples, 3 passes, with "
+  log << "roundtrip: rendering " << width << "x" << height << " px at " << samples << " samples, 3 passes, with "
       << run.blender << " (log: " << JoinPath(JoinPath(out_dir, "scene"), "blender.log") << ")\n";
-  int exit_code = 0;
-  pid_t blender = 0;
-  const Status started = StartProgram(
-      {run.blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python", JoinPath(scene_dir, "scene.py"),
-       "--", "--passes", prefix, "--samples", std::to_string(run.samples)},
-      blender_log, &blender);
-  if (!started.ok()) {
-    return Status::Error("--blender: " + started.message() + " (install Debian's blender package, or give its path)");
-  }
-  THINSLAB_RETURN_IF_ERROR(WaitForRender(blender, blender_log, kRenderPasses, run.samples, run.progress, &exit_code));
-  if (exit_code != 0) {
-    std::string tail;
-    if (!ReadFileToString(blender_log, &tail).ok()) tail = "(unreadable)";
-    if (tail.size() > 2000) tail = "..." + tail.substr(tail.size() - 2000);
-    return Status::Error("--blender: '" + run.blender + "' exited with " + std::to_string(exit_code) + " rendering " +
-                         JoinPath(scene_dir, "scene.py") + "; its log ends:\n" + tail);
-  }
+  THINSLAB_RETURN_IF_ERROR(RenderBlenderPasses(run.blender, scene_dir, prefix, kRenderPasses, samples,
+                                               "roundtrip: Blender render", run.progress));
   Image reference, shadow_1, shadow_2;
-  THINSLAB_RETURN_IF_ERROR(ReadRender(prefix + "_reference.exr", width, height, &reference));
-  THINSLAB_RETURN_IF_ERROR(ReadRender(prefix + "_shadow_1.exr", width, height, &shadow_1));
-  THINSLAB_RETURN_IF_ERROR(ReadRender(prefix + "_shadow_2.exr", width, height, &shadow_2));
+  THINSLAB_RETURN_IF_ERROR(ReadBlenderRender(prefix + "_reference.exr", width, height, "", &reference));
+  THINSLAB_RETURN_IF_ERROR(ReadBlenderRender(prefix + "_shadow_1.exr", width, height, "", &shadow_1));
+  THINSLAB_RETURN_IF_ERROR(ReadBlenderRender(prefix + "_shadow_2.exr", width, height, "", &shadow_2));
 
   // The rendered shadow in the capture's units: ratio to the rendered reference times the
   // block's clean signal. Its noise from the two seeds: var(mean of 2) = (s1 - s2)^2 / 4.
@@ -326,26 +241,8 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   if (!(white > 0)) {
     return Status::Error(manifest + ": no camera pixel sees the fitted map with a clean signal; nothing to compare");
   }
-  // capture | Blender | |Blender - capture| x 5 | predict, on one grey scale (white: the brightest
-  // clean signal).
-  Image magnified_difference(width, height);
-  for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) magnified_difference.at(x, y) = 5 * std::abs(images.at(x, y, 7));
-  }
-  THINSLAB_RETURN_IF_ERROR(WritePngAtomically(
-      JoinPath(out.path(), "roundtrip.png"),
-      SideBySide({LabelledRadianceTile(images, 2, white, "capture"), LabelledRadianceTile(images, 0, white, "Blender"),
-                  LabelledRadianceTile(magnified_difference, 0, white, "|diff| x5"),
-                  LabelledRadianceTile(images, 1, white, "predict")})));
-  Image invalid(width, height);
-  for (size_t k = 0; k < b.valid.size(); ++k) invalid.data()[k] = b.valid[k] ? 0.0f : 1.0f;
-  FalseColorOptions difference_colors;
-  difference_colors.scale_kind = ColorScale::kDiverging;
-  difference_colors.min_value = -0.1 * white;
-  difference_colors.max_value = 0.1 * white;
-  difference_colors.label = "render - capture";
-  THINSLAB_RETURN_IF_ERROR(
-      WriteFalseColorPng(JoinPath(out.path(), "difference.png"), images, 7, &invalid, difference_colors));
+  // On one grey scale, white the brightest clean signal.
+  THINSLAB_RETURN_IF_ERROR(WriteRoundTripPictures(out.path(), images, {2, 0, 1, 7, 5}, white));
 
   nlohmann::json j;
   j["format"] = "thinslab-roundtrip-summary";
@@ -353,7 +250,7 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   j["session"] = run.session_dir;
   j["fit"] = fit_dir;
   j["renderer"] = "blender";
-  j["samples"] = run.samples;
+  j["samples"] = samples;
   j["downsample"] = n;
   j["image"] = {{"width", width}, {"height", height}};
   j["board_distance_m"] = rig.board_distance_m;
@@ -362,25 +259,19 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   j["regions"] = RoundTripRegionsJson(render_vs_capture, render_vs_predict);
   j["notes"] = scene.notes;
   std::ostringstream txt;
-  txt << "thinslab roundtrip: " << fit_dir << " rendered by Blender (Cycles, " << run.samples
+  txt << "thinslab roundtrip: " << fit_dir << " rendered by Blender (Cycles, " << samples
       << " samples) under the rig of " << run.session_dir << ", " << width << "x" << height << " px (" << n << "x" << n
       << " camera pixels each), against the capture's " << (prediction.validation ? "validation" : "fitted")
       << " shadow frames and thinslab predict:\n";
   for (size_t k = 0; k < render_vs_capture.size(); ++k) {
     const ShadowPredictionRegion& r = render_vs_capture[k];
-    txt << "  " << r.name << " (" << r.pixels << " px): Blender vs capture " << Fixed(r.relative_rms)
-        << ", predict vs capture " << Fixed(r.alternative_relative_rms) << ", Blender vs predict "
-        << Fixed(render_vs_predict[k].relative_rms) << " (noise: capture + render " << Fixed(r.noise_relative_rms)
-        << ", render " << Fixed(render_vs_predict[k].noise_relative_rms) << ")\n";
+    txt << "  " << r.name << " (" << r.pixels << " px): Blender vs capture " << RoundTripFigure(r.relative_rms)
+        << ", predict vs capture " << RoundTripFigure(r.alternative_relative_rms) << ", Blender vs predict "
+        << RoundTripFigure(render_vs_predict[k].relative_rms) << " (noise: capture + render "
+        << RoundTripFigure(r.noise_relative_rms) << ", render "
+        << RoundTripFigure(render_vs_predict[k].noise_relative_rms) << ")\n";
   }
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), j.dump(2) + "\n"));
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.txt"), txt.str()));
-  if (!run.options_ini.empty()) {
-    THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "options.ini"), run.options_ini));
-  }
-  THINSLAB_RETURN_IF_ERROR(out.Commit());
-  log << txt.str() << "wrote " << out_dir << "\n";
-  return Status::Ok();
+  return FinishRoundTrip(&out, j, txt.str(), run.options_ini, log);
 }
 
 }  // namespace thinslab

@@ -12,7 +12,7 @@
 // tau, difference, clean, at the render's resolution), roundtrip.png (capture | render |
 // difference | predict), difference.png (render - capture, diverging colours), summary.json and summary.txt (per
 // fitted-tau region: render against capture, predict against capture, render against predict, with the noise levels),
-// options.ini.
+// options.ini. Laser-lobe captures with their `fit phase`: export/lobe_round_trip.h.
 #pragma once
 
 #include <ostream>
@@ -26,10 +26,12 @@ namespace thinslab {
 
 struct RoundTripRun {
   std::string session_dir;
-  std::string fit_dir;              // "" = CAPTURE/fit/tau.
+  std::string fit_dir;              // "" = CAPTURE/fit/tau (shadow maps) or CAPTURE/fit/phase (laser lobes).
   std::string out_dir;              // "" = CAPTURE/fit/roundtrip.
   std::string blender = "blender";  // The Blender executable (a name on PATH or a path).
-  int samples = 32;                 // Cycles samples per pixel of each render.
+  // Cycles samples per pixel of each render; 0: the capture kind's default (32 for shadow maps,
+  // 8192 for the laser probe's 16 x 16 pixels).
+  int samples = 0;
   // Camera pixels per rendered pixel along each axis: the render has the capture's intrinsics
   // scaled by 1/downsample, and the capture's images are averaged over downsample^2 blocks.
   int downsample = 2;

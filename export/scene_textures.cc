@@ -32,7 +32,7 @@ Status WriteSceneTextures(const RenderScene& scene, const std::string& dir, cons
     THINSLAB_RETURN_IF_ERROR(
         WriteTexture(scene.slab->bottom_alpha, dir, "bottom_alpha", scene.grid, provenance, &textures->bottom_alpha));
   }
-  if (scene.layer) {
+  if (scene.layer && !scene.layer->tau.empty()) {
     THINSLAB_RETURN_IF_ERROR(WriteTexture(scene.layer->tau, dir, "tau", scene.grid, provenance, &textures->tau));
   }
   return Status::Ok();

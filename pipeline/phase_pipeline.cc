@@ -83,7 +83,7 @@ Status WriteLobePlot(const std::string& path, const std::vector<LaserRing>& ring
 }
 
 std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images, const CaptureCompleteness& capture,
-                        const nlohmann::json& truth, const nlohmann::json& validation,
+                        const nlohmann::json& truth, const nlohmann::json& validation, double layer_albedo,
                         const Provenance& provenance) {
   const SessionCalibration& calibration = images.calibration;
   nlohmann::json j;
@@ -108,6 +108,8 @@ std::string SummaryJson(const PhaseFitSummary& s, const LaserLobeImages& images,
   j["sigma_log_beta"] = s.sigma_log_beta;
   j["tau"] = s.tau;
   j["sigma_tau"] = s.sigma_tau;
+  j["layer_albedo"] =
+      layer_albedo;  // Given (--albedo), not measured: sigma_g's second-order term and the render use it.
   j["chi2_reduced"] = s.chi2_reduced;
   j["rms_normalized_residual"] = s.rms_normalized_residual;
   j["detection_significance"] = s.detection_significance;
@@ -220,7 +222,10 @@ Status FitPhasePipeline(const std::string& session_dir, const std::string& out_d
     truth = nlohmann::json::parse(text, nullptr, false);
     if (truth.is_discarded()) return Status::Error(truth_path + ": not valid JSON");
   }
-  THINSLAB_RETURN_IF_ERROR(WriteFileAtomically(JoinPath(out.path(), "summary.json"), SummaryJson(*summary, images, capture, truth, validation, {"fit phase", session_dir, "", options_ini})));
+  THINSLAB_RETURN_IF_ERROR(
+      WriteFileAtomically(JoinPath(out.path(), "summary.json"),
+                          SummaryJson(*summary, images, capture, truth, validation, options.layer_albedo,
+                                      {"fit phase", session_dir, "", options_ini})));
   THINSLAB_RETURN_IF_ERROR(
       WriteFileAtomically(JoinPath(out.path(), "summary.txt"), summary->FullReport() + validation_text));
   if (!validation_text.empty()) std::cout << validation_text;

@@ -129,18 +129,10 @@ std::vector<ShadowPredictionRegion> ImageShadowInCamera(const Image& tau_map, co
   return CompareShadowPrediction(predicted, plain, measured, variance, tau, sigma_tau, valid);
 }
 
-// The lobe `prediction` holds imaged in the capture's camera: per camera pixel, the board point
-// its ray meets, Eq. 8 at its angle from the beam centre, taken back from the rings' units
-// (flat-fielded at the beam centre, clean glass subtracted) to the pixel's own:
-//   predicted = ring model * flat(u) / flat(centre) + clean(u),
-// over the pixels between the spike core and the outermost angle, against the HDR merge.
-struct LobeCameraError {
-  int64_t pixels = 0;
-  double relative_rms = -1, noise_relative_rms = -1;
-};
-LobeCameraError ImageLobeInCamera(const LaserLobeImages& images, const LobePrediction& prediction, double g, double tau,
-                                  Image* camera_image) {
-  const LaserRingGeometry& ring = prediction.geometry;
+}  // namespace
+
+LobeCameraError ImageLobeInCamera(const LaserLobeImages& images, const LaserRingGeometry& ring,
+                                  const std::function<double(double r_m)>& profile, Image* camera_image) {
   BoardGrid grid;
   grid.grid_min_m = images.grid_min_m;
   grid.pixel_pitch_m = images.pixel_pitch_m;
@@ -163,8 +155,7 @@ LobeCameraError ImageLobeInCamera(const LaserLobeImages& images, const LobePredi
       if (r < ring.r_core_m || r >= ring.r_max_m) continue;
       const double flat = ring.flat_fielded ? images.flat.camera_radiance.data()[k] / ring.flat_at_centre : 1.0;
       if (!(flat > 0)) continue;
-      const double cos_theta = std::cos(std::atan(r / images.board_distance_m));
-      double predicted = prediction.scale * LaserLobeProfile(cos_theta, g, tau) * flat;
+      double predicted = profile(r) * flat;
       double variance = images.lobe.camera_variance.data()[k];
       if (ring.clean_subtracted) {
         predicted += images.clean.camera_radiance.data()[k];
@@ -187,8 +178,6 @@ LobeCameraError ImageLobeInCamera(const LaserLobeImages& images, const LobePredi
   }
   return error;
 }
-
-}  // namespace
 
 Status PredictShadow(const std::string& session_dir, const Session& session, const std::string& fit_dir,
                      const SessionCalibrationOptions& calibration, ShadowPrediction* prediction) {
@@ -291,33 +280,48 @@ Status PredictShadowFromTau(const PredictRun& run, const Session& session, Stage
   return Status::Ok();
 }
 
-Status PredictLobeFromPhase(const PredictRun& run, const Session& session, StagedDirectory* out) {
-  const std::string summary_path = JoinPath(run.fit_dir, "summary.json");
+Status PredictLobe(const std::string& session_dir, const Session& session, const std::string& fit_dir,
+                   const SessionCalibrationOptions& calibration, LobeFitPrediction* out) {
+  *out = LobeFitPrediction();
+  const std::string summary_path = JoinPath(fit_dir, "summary.json");
   nlohmann::json fit_summary;
   THINSLAB_RETURN_IF_ERROR(ReadJsonObjectFile(summary_path, "a `thinslab fit phase` output", &fit_summary));
   if (!fit_summary.contains("result") || fit_summary["result"] != "success") {
     return Status::Error(summary_path + ": result is not \"success\": the lobe fit gave no Eq. 8 parameters to predict with");
   }
-  double beta = 0, g = 0, tau = 0, fit_distance = 0, max_theta_deg = 0;
-  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "beta", &beta));
-  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "g", &g));
-  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "tau", &tau));
-  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "board_distance_m", &fit_distance));
-  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "max_theta_deg", &max_theta_deg));
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "beta", &out->beta));
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "g", &out->g));
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "tau", &out->tau));
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "board_distance_m", &out->fit_board_distance_m));
+  THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "max_theta_deg", &out->max_theta_deg));
+  if (fit_summary.contains("sigma_g"))
+    THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "sigma_g", &out->sigma_g));
+  if (fit_summary.contains("layer_albedo")) {
+    THINSLAB_RETURN_IF_ERROR(NumberField(fit_summary, summary_path, "layer_albedo", &out->layer_albedo));
+  }
   LaserLobePreparationOptions preparation;
-  preparation.calibration = run.calibration;
+  preparation.calibration = calibration;
   preparation.keep_camera_hdr = true;
-  LaserLobeImages images;
-  THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(run.session_dir, session, preparation, &images));
-  const bool validation = !images.validation_lobe.empty();
-  if (validation) images.lobe = images.validation_lobe;
+  LaserLobeImages& images = out->images;
+  THINSLAB_RETURN_IF_ERROR(PrepareLaserLobe(session_dir, session, preparation, &images));
+  out->validation = !images.validation_lobe.empty();
+  if (out->validation) images.lobe = images.validation_lobe;
   PhaseFitOptions options;
   options.max_theta_auto = false;
-  options.max_theta_deg = max_theta_deg;
-  options.tau = tau;
-  LobePrediction prediction;
-  THINSLAB_RETURN_IF_ERROR(PredictLaserLobe(options, beta, g, tau, fit_distance, images, &prediction)
-                               .WithContext(run.session_dir));
+  options.max_theta_deg = out->max_theta_deg;
+  options.tau = out->tau;
+  return PredictLaserLobe(options, out->beta, out->g, out->tau, out->fit_board_distance_m, images, &out->prediction)
+      .WithContext(session_dir);
+}
+
+Status PredictLobeFromPhase(const PredictRun& run, const Session& session, StagedDirectory* out) {
+  LobeFitPrediction fit;
+  THINSLAB_RETURN_IF_ERROR(PredictLobe(run.session_dir, session, run.fit_dir, run.calibration, &fit));
+  const LaserLobeImages& images = fit.images;
+  const LobePrediction& prediction = fit.prediction;
+  const bool validation = fit.validation;
+  const double g = fit.g, tau = fit.tau, beta = fit.beta, fit_distance = fit.fit_board_distance_m,
+               max_theta_deg = fit.max_theta_deg;
   std::ostringstream csv;
   csv << "r_m,theta_deg,measured_dn_per_us,sigma,predicted_dn_per_us,pixels\n";
   csv.precision(9);
@@ -330,7 +334,12 @@ Status PredictLobeFromPhase(const PredictRun& run, const Session& session, Stage
   j["model"] = {{"beta", beta}, {"g", g}, {"tau", tau}, {"max_theta_deg", max_theta_deg}};
   j["lobe"] = LobeBandsJson(prediction);
   Image camera_image;
-  const LobeCameraError camera = ImageLobeInCamera(images, prediction, g, tau, &camera_image);
+  const LobeCameraError camera = ImageLobeInCamera(
+      images, prediction.geometry,
+      [&](double r_m) {
+        return prediction.scale * LaserLobeProfile(std::cos(std::atan(r_m / images.board_distance_m)), g, tau);
+      },
+      &camera_image);
   j["lobe_camera"] = {{"pixels", camera.pixels},
                       {"relative_rms", camera.relative_rms},
                       {"noise_relative_rms", camera.noise_relative_rms}};

@@ -3,11 +3,12 @@
 // section 4): the validation reports of `fit tau` and `fit phase` and `thinslab predict`.
 #pragma once
 
+#include <functional>
 #include <nlohmann/json.hpp>
-
 #include <string>
 #include <vector>
 
+#include "thinslab/calib/laser_lobe_preparation.h"
 #include "thinslab/calib/session_calibration.h"
 #include "thinslab/calib/shadow_map_preparation.h"
 #include "thinslab/core/file.h"
@@ -59,5 +60,33 @@ struct ShadowPrediction {
 Status PredictShadow(const std::string& session_dir, const Session& session, const std::string& fit_dir,
                      const SessionCalibrationOptions& calibration, ShadowPrediction* prediction);
 Status PredictLobeFromPhase(const PredictRun& run, const Session& session, StagedDirectory* out);
+
+// The lobe a `fit phase` output (FIT/summary.json: Eq. 8's beta, g and tau) predicts for the
+// laser-lobe capture SESSION, against the rings measured in its frames (its validation lobe when
+// it has one) out to the fit's outermost angle: what PredictLobeFromPhase writes, for callers
+// that compare it with more (the render round trip, export/lobe_round_trip.h).
+struct LobeFitPrediction {
+  LaserLobeImages images;  // With the camera's HDR (keep_camera_hdr); `lobe` is the one compared.
+  bool validation = false;
+  double beta = 0, g = 0, sigma_g = 0, tau = 0, fit_board_distance_m = 0, max_theta_deg = 0;
+  double layer_albedo = -1;  // The albedo the fit was given (summary.json), -1 when not recorded.
+  LobePrediction prediction;
+};
+Status PredictLobe(const std::string& session_dir, const Session& session, const std::string& fit_dir,
+                   const SessionCalibrationOptions& calibration, LobeFitPrediction* out);
+
+// A radial lobe profile (a ring's value, flat-fielded at the beam centre and clean glass
+// subtracted, against the distance r from the beam centre on the board) imaged in the capture's
+// camera: per camera pixel, the board point its ray meets, taken back from the rings' units to
+// the pixel's own:
+//   predicted = profile(r) * flat(u) / flat(centre) + clean(u),
+// over the pixels between the spike core and the outermost angle of `ring`, against the HDR
+// merge. camera_image: channels predicted, measured, variance, valid.
+struct LobeCameraError {
+  int64_t pixels = 0;
+  double relative_rms = -1, noise_relative_rms = -1;
+};
+LobeCameraError ImageLobeInCamera(const LaserLobeImages& images, const LaserRingGeometry& ring,
+                                  const std::function<double(double r_m)>& profile, Image* camera_image);
 
 }  // namespace thinslab

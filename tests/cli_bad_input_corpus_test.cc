@@ -730,11 +730,12 @@ std::vector<Case> Cases() {
       C("preview_out_inside_fit", "shadow_fit", none, "preview {in}/fit/tau {in}/fit/tau/preview", {"{in}/fit/tau"}),
 
       // ---- thinslab roundtrip ----
-      C("roundtrip_laser_capture", "laser", none, "roundtrip {in} --out {out}", {"session.json", "shadow-map"}),
+      C("roundtrip_laser_without_fit", "laser", none, "roundtrip {in} --out {out}", {"fit/phase", "fit phase"}),
+      C("roundtrip_dot_scan", "dots", none, "roundtrip {in} --out {out}", {"session.json", "dot scans"}),
       C("roundtrip_without_fit", "shadow", none, "roundtrip {in} --out {out}", {"fit/tau", "fit tau"}),
       C("roundtrip_tau_truncated", "shadow_fit", Truncate("{in}/fit/tau/tau.exr", 200), "roundtrip {in} --out {out}",
         {"tau.exr"}),
-      C("roundtrip_samples_zero", "shadow_fit", none, "roundtrip {in} --out {out} --samples 0", {"--samples"}),
+      C("roundtrip_samples_negative", "shadow_fit", none, "roundtrip {in} --out {out} --samples -1", {"--samples"}),
       C("roundtrip_blender_missing", "shadow_fit", none, "roundtrip {in} --out {out} --blender {case}/no_blender",
         {"--blender", "{case}/no_blender"}),
       C("roundtrip_out_inside_fit", "shadow_fit", none, "roundtrip {in} --out {in}/fit/tau/rt", {"{in}/fit/tau"}),

@@ -38,6 +38,14 @@ double RelativeRms(const Image& images, const std::string& a, const std::string&
   return norm > 0 ? std::sqrt(err / norm) : -1;
 }
 
+const nlohmann::json& Band(const nlohmann::json& bands, const std::string& name) {
+  for (const nlohmann::json& band : bands) {
+    if (band["band"] == name) return band;
+  }
+  ADD_FAILURE() << "no band " << name << " in " << bands.dump();
+  return bands;
+}
+
 // A copy of FIT with tau (and tau_eq7) multiplied by `factor`.
 void ScaledFit(const std::string& fit, const std::string& out, double factor) {
   ASSERT_TRUE(CreateDirectories(out).ok());
@@ -120,6 +128,74 @@ TEST(CliRoundTrip, BlenderRenderOfTheFittedLayerReproducesTheCaptureAndPredict) 
   EXPECT_TRUE(FileExists(out + "/options.ini"));
 }
 
+// A laser-lobe capture (Monte Carlo layer with all orders of scattering, g 0.8, tau 0.3, albedo
+// 0.3; sensor noise, 12-bit quantisation) fitted by `fit phase` (Eq. 8, single scattering) and its
+// layer rendered by Blender with all orders under the capture's laser rig, by reciprocity (one
+// light group per ring, export/render_scene.h LaserProbe). The rendered rings must match the
+// captured ones in shape within the noise of both and what the fit's own sigma_g allows, and agree
+// with predict's Eq. 8 as closely. The check can fail: a fit whose g is 0.1 lower renders far
+// from the capture.
+TEST(CliRoundTrip, BlenderRenderOfTheFittedLobeReproducesTheCaptureAndPredict) {
+  ASSERT_EQ(std::system("command -v blender > /dev/null"), 0) << "blender is missing (scripts/install_deps.sh)";
+  TempDir dir;
+  const std::string capture = dir / "laser";
+  RunThinslabOk("sim laser " + capture + " --camera-width-px 400 --camera-height-px 300");
+  RunThinslabOk("fit phase " + capture);
+  const nlohmann::json fit = ReadJsonFile(capture + "/fit/phase/summary.json");
+  EXPECT_EQ(fit["layer_albedo"], 0.3);  // Given to the fit, and rendered.
+  const RunResult run = RunThinslabOk("roundtrip " + capture + " --verbose");
+  std::printf("%s\n", run.output.c_str());
+  EXPECT_NE(run.output.find("roundtrip: Blender render (2 passes): 16384/16384"), std::string::npos) << run.output;
+  const std::string out = capture + "/fit/roundtrip";
+  const nlohmann::json summary = ReadJsonFile(out + "/summary.json");
+  EXPECT_EQ(summary["format"], "thinslab-roundtrip-summary");
+  EXPECT_EQ(summary["kind"], "laser_lobe");
+  EXPECT_EQ(summary["layer"]["albedo"], 0.3);
+  const nlohmann::json& bands = summary["bands"];
+  ASSERT_GE(bands.size(), 2u) << bands.dump();
+  for (const nlohmann::json& band : bands) {
+    ASSERT_GE(band["rings"].get<int>(), 5) << band.dump();
+    const double render = band["render_vs_capture_relative_rms"], predict = band["predict_vs_capture_relative_rms"],
+                 between = band["render_vs_predict_relative_rms"], render_noise = band["render_noise_relative_rms"];
+    const double allowed =
+        std::hypot(band["noise_relative_rms"].get<double>(), render_noise, band["sigma_g_relative_rms"].get<double>());
+    std::printf("%s: render vs capture %.4f, predict vs capture %.4f, render vs predict %.4f, allowed %.4f\n",
+                band["band"].get<std::string>().c_str(), render, predict, between, allowed);
+    // The render's own noise is small enough for the comparison to mean something.
+    EXPECT_LT(render_noise, 0.02) << band.dump();
+    EXPECT_LT(render, 2 * allowed) << band.dump();
+    EXPECT_LT(between, 2 * allowed) << band.dump();
+  }
+  const nlohmann::json& all = Band(bands, "all");
+  EXPECT_GT(all["rings"].get<int>(), 15) << all.dump();
+  EXPECT_GT(summary["camera"]["pixels"].get<int>(), 1000) << summary["camera"].dump();
+  EXPECT_LT(summary["camera"]["render_vs_capture_relative_rms"].get<double>(), 0.05) << summary["camera"].dump();
+
+  // A fit with g 0.1 lower renders far from the capture (and still like its own Eq. 8: the
+  // exported g means what the fit's g means).
+  const std::string low_g = dir / "low_g";
+  ASSERT_TRUE(CreateDirectories(low_g).ok());
+  nlohmann::json changed = fit;
+  changed["g"] = fit["g"].get<double>() - 0.1;
+  ASSERT_TRUE(WriteFileAtomically(low_g + "/summary.json", changed.dump(2)).ok());
+  RunThinslabOk("roundtrip " + capture + " --fit " + low_g + " --out " + (dir / "low_g_roundtrip"));
+  const nlohmann::json low_summary = ReadJsonFile(dir / "low_g_roundtrip/summary.json");
+  const nlohmann::json& low = Band(low_summary["bands"], "all");
+  std::printf("g - 0.1: render vs capture %.4f, render vs predict %.4f\n",
+              low["render_vs_capture_relative_rms"].get<double>(), low["render_vs_predict_relative_rms"].get<double>());
+  EXPECT_GT(low["render_vs_capture_relative_rms"].get<double>(),
+            5 * all["render_vs_capture_relative_rms"].get<double>());
+  EXPECT_LT(low["render_vs_predict_relative_rms"].get<double>(),
+            2 * all["render_noise_relative_rms"].get<double>() + 0.01);
+
+  const cv::Mat png = cv::imread(out + "/roundtrip.png", cv::IMREAD_COLOR);
+  ASSERT_FALSE(png.empty());
+  EXPECT_EQ(png.cols, 4 * 400 + 3 * 6);
+  EXPECT_TRUE(FileExists(out + "/difference.png"));
+  EXPECT_TRUE(FileExists(out + "/lobe_rings.csv"));
+  EXPECT_TRUE(FileExists(out + "/scene/render_lobe_2.exr"));
+}
+
 TEST(CliRoundTrip, RefusesWhatItCannotRenderByName) {
   TempDir dir;
   const std::string capture = dir / "capture";
@@ -135,9 +211,16 @@ TEST(CliRoundTrip, RefusesWhatItCannotRenderByName) {
   r = RunThinslab("roundtrip " + capture + " --downsample 16");
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("--downsample 16"), std::string::npos) << r.output;
-  r = RunThinslab("roundtrip " + capture + " --samples 0");
+  r = RunThinslab("roundtrip " + capture + " --samples -1");
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("--samples"), std::string::npos) << r.output;
+  // A laser-lobe capture without its `fit phase`.
+  const std::string laser = dir / "laser";
+  RunThinslabOk("sim laser " + laser + " --camera-width-px 80 --camera-height-px 60 --photons 2000");
+  r = RunThinslab("roundtrip " + laser);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("`thinslab fit phase`"), std::string::npos) << r.output;
+  EXPECT_FALSE(FileExists(laser + "/fit/roundtrip"));
 }
 
 }  // namespace
