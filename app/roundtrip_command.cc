@@ -16,14 +16,18 @@ namespace thinslab {
 int RunRoundTrip(int argc, char** argv) {
   RoundTripRun run;
   OptionParser parser("roundtrip");
-  parser.AddPositional("CAPTURE", &run.session_dir, "shadow-map or laser-lobe capture whose rig the render reproduces");
+  parser.AddPositional("CAPTURE", &run.session_dir,
+                       "shadow-map, laser-lobe or dot-scan capture whose rig the render reproduces");
   parser.AddString("fit", &run.fit_dir,
-                   "output folder of `thinslab fit tau` or `fit phase` (default CAPTURE/fit/tau or CAPTURE/fit/phase)");
+                   "output folder of `thinslab fit tau`, `fit phase` or `fit dmf` (default CAPTURE/fit/tau, phase or "
+                   "dmf by the capture's kind)");
   parser.AddString("out", &run.out_dir, "output folder (default CAPTURE/fit/roundtrip)");
   parser.AddString("blender", &run.blender, "the Blender executable (a name on PATH or a path)");
   parser.AddInt("samples", &run.samples,
-                "Cycles samples per pixel of each render (0: 32 for shadow maps, 8192 for laser lobes)");
+                "Cycles samples per pixel of each render (0: 32 for shadow maps, 8192 for laser lobes, 256 for dots)");
   parser.AddInt("downsample", &run.downsample, "camera pixels per rendered pixel along each axis");
+  parser.AddString("dots", &run.dots,
+                   "dot scans: the dots to render, 'x,y;x,y' in monitor px (default the capture's validation dots)");
   AddCalibrationOptions(&parser, &run.calibration);
   AddIncompleteCaptureOption(&parser, &run.allow_incomplete_capture);
   int exit_code = 0;

@@ -39,7 +39,8 @@ def parse_args():
     parser.add_argument("--passes", metavar="PREFIX",
                         help="the round trip's renders (32-bit EXR): PREFIX_reference.exr without the layer, "
                              "PREFIX_shadow_1.exr and PREFIX_shadow_2.exr with it (two independent seeds); for a "
-                             "laser probe PREFIX_lobe_1.exr and PREFIX_lobe_2.exr (multilayer: a pass per ring)")
+                             "laser probe PREFIX_lobe_1.exr and PREFIX_lobe_2.exr (multilayer: a pass per ring); "
+                             "for a dot monitor PREFIX_dot<k>_1.exr and PREFIX_dot<k>_2.exr per dot")
     return parser.parse_args(argv)
 
 
@@ -144,11 +145,12 @@ def layer_volume(layer, thickness):
     return material
 
 
-def emission(name):
+def emission(name, strength=1.0):
+    """Radiance `strength`: Cycles renders an emitter of strength 1 seen directly as 1."""
     material, nodes, links = new_material(name)
     output = nodes.new("ShaderNodeOutputMaterial")
     emit = nodes.new("ShaderNodeEmission")
-    emit.inputs["Strength"].default_value = 1.0
+    emit.inputs["Strength"].default_value = strength
     links.new(emit.outputs["Emission"], output.inputs["Surface"])
     return material
 
@@ -219,6 +221,20 @@ def laser_probe(probe):
     return camera
 
 
+def dot_monitor(monitor):
+    """The dot-scan monitor: one Lambertian disc per dot (named dot<k>), the rest black."""
+    material = emission("dot", monitor["radiance"])
+    for k, (centre, normal, radius) in enumerate(monitor["dots"]):
+        mesh = bpy.data.meshes.new("dot%d" % k)
+        bm = bmesh.new()
+        bmesh.ops.create_circle(bm, cap_ends=True, segments=32, radius=radius)
+        bm.to_mesh(mesh)
+        bm.free()
+        disc = link(bpy.data.objects.new("dot%d" % k, mesh))
+        disc.data.materials.append(material)
+        orient(disc, normal, centre)
+
+
 def build():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -269,8 +285,12 @@ def build():
         scene.cycles.filter_width = 1.0
         scene.camera = laser_probe(probe)
         return scene
-    if rig:
-        shadow_rig(rig)
+    monitor = SCENE["dot_monitor"]
+    if rig or monitor:
+        if rig:
+            shadow_rig(rig)
+        else:
+            dot_monitor(monitor)
         scene.cycles.pixel_filter_type = "BOX"  # A camera pixel integrates its own square.
         scene.cycles.filter_width = 1.0
     else:
@@ -320,7 +340,16 @@ def main():
         scene.render.image_settings.color_depth = "32"
         if SCENE["laser_probe"]:  # Two seeds; each ring's light group is a pass of the multilayer EXR.
             scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
-        passes = (("lobe_1", 1, True), ("lobe_2", 2, True)) if SCENE["laser_probe"] else (
+        if SCENE["dot_monitor"]:  # Two seeds per dot, the other dots dark.
+            for k in range(len(SCENE["dot_monitor"]["dots"])):
+                for obj in scene.objects:
+                    if obj.name.startswith("dot"):
+                        obj.hide_render = obj.name != "dot%d" % k
+                for seed in (1, 2):
+                    scene.cycles.seed = seed
+                    scene.render.filepath = os.path.abspath("%s_dot%d_%d.exr" % (args.passes, k, seed))
+                    bpy.ops.render.render(write_still=True)
+        passes = () if SCENE["dot_monitor"] else (("lobe_1", 1, True), ("lobe_2", 2, True)) if SCENE["laser_probe"] else (
             ("reference", 0, False), ("shadow_1", 1, True), ("shadow_2", 2, True))
         for name, seed, with_layer in passes:
             for obj in scene.objects:
@@ -387,6 +416,18 @@ std::string BlenderScript(const RenderScene& scene, const SceneTextures& texture
     out << "]},\n";
   } else {
     out << "    \"laser_probe\": None,\n";
+  }
+  if (scene.dot_monitor) {
+    const DotMonitor& monitor = *scene.dot_monitor;
+    out << "    \"dot_monitor\": {\"radiance\": " << SceneNumber(monitor.radiance) << ", \"dots\": [";
+    for (size_t k = 0; k < monitor.dots.size(); ++k) {
+      const DotMonitor::Dot& dot = monitor.dots[k];
+      out << (k ? ",\n        " : "") << "(" << Tuple(dot.centre_m) << ", " << Tuple(dot.normal) << ", "
+          << SceneNumber(dot.radius_m) << ")";
+    }
+    out << "]},\n";
+  } else {
+    out << "    \"dot_monitor\": None,\n";
   }
   if (scene.slab) {
     const RoughSlab& slab = *scene.slab;

@@ -76,20 +76,16 @@ double LeastSquaresScale(const std::vector<double>& model, const std::vector<dou
 
 Status RenderLobeRoundTrip(const RoundTripRun& run, const Session& session, std::ostream& log) {
   const std::string manifest = JoinPath(run.session_dir, kSessionManifestName);
-  const std::string fit_dir = run.fit_dir.empty() ? JoinPath(JoinPath(run.session_dir, "fit"), "phase") : run.fit_dir;
-  if (!FileExists(JoinPath(fit_dir, "summary.json"))) {
-    return Status::Error(fit_dir +
-                         ": no summary.json: the round trip of a laser-lobe capture renders a `thinslab fit phase` "
-                         "output (run it first or give its folder with --fit)");
-  }
+  std::string fit_dir;
+  THINSLAB_RETURN_IF_ERROR(
+      ResolveRoundTripFit(run.session_dir, run.fit_dir, "phase", "summary.json", "laser-lobe", "fit phase", &fit_dir));
   const Eigen::Vector3d beam = session.rig.laser.direction_in_sample.normalized();
   if (!session.rig.laser.present || !(beam.z() < -std::cos(kPi / 180))) {
     return Status::Error(manifest +
                          ": rig.laser.direction_in_sample must point along -z within 1 degree (the beam at normal "
                          "incidence, as Gu Eq. 8 and the rendered rig assume)");
   }
-  const std::string out_dir =
-      run.out_dir.empty() ? JoinPath(JoinPath(run.session_dir, "fit"), "roundtrip") : run.out_dir;
+  const std::string out_dir = RoundTripOutDir(run.session_dir, run.out_dir);
   StagedDirectory out(out_dir, "roundtrip", {{run.session_dir, {"fit"}}, {fit_dir, {}}});
   THINSLAB_RETURN_IF_ERROR(out.Init());
 
@@ -278,14 +274,7 @@ Status RenderLobeRoundTrip(const RoundTripRun& run, const Session& session, std:
       << RoundTripFigure(predict_error.relative_rms) << " (noise " << RoundTripFigure(render_error.noise_relative_rms)
       << ")\n";
 
-  nlohmann::json j;
-  j["format"] = "thinslab-roundtrip-summary";
-  j["provenance"] = ProvenanceJson(provenance);
-  j["kind"] = "laser_lobe";
-  j["session"] = run.session_dir;
-  j["fit"] = fit_dir;
-  j["renderer"] = "blender";
-  j["samples"] = samples;
+  nlohmann::json j = RoundTripSummaryHead("laser_lobe", provenance, run.session_dir, fit_dir, samples);
   j["probe"] = {{"image_px", probe.image_px},
                 {"view_size_m", probe.view_size_m},
                 {"beam_radius_m", probe.beam_radius_m},

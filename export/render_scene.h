@@ -82,6 +82,19 @@ struct LaserProbe {
   int image_px = 16;
 };
 
+// The capture's dot-scan monitor for the render round trip (export/dot_round_trip.h): Lambertian
+// discs of radiance `radiance` (the fit's median dot radiance, in the capture's DN/us, so the
+// render is in the capture's units), one lit per render. The rest of the monitor is black and
+// not drawn.
+struct DotMonitor {
+  struct Dot {
+    Eigen::Vector3d centre_m, normal;  // The normal points towards the sample.
+    double radius_m = 0;
+  };
+  std::vector<Dot> dots;
+  double radiance = 1;
+};
+
 // Pinhole intrinsics of the rig camera in pixels of image_width x image_height (OpenCV: pixel
 // centres at integer coordinates, y down).
 struct PinholeIntrinsics {
@@ -108,6 +121,7 @@ struct RenderScene {
   double backlight_half_size_m = 0.1;
   std::optional<ShadowRig> shadow_rig;
   std::optional<LaserProbe> laser_probe;  // Replaces the camera and lights (Blender only).
+  std::optional<DotMonitor> dot_monitor;  // Replaces the backlight (Blender only).
   std::string source;              // The fit folder.
   std::vector<std::string> notes;  // What the export approximated (written beside the scene).
 };

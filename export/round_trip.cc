@@ -14,6 +14,7 @@
 #include "thinslab/core/session_io.h"
 #include "thinslab/export/blender_render.h"
 #include "thinslab/export/blender_scene.h"
+#include "thinslab/export/dot_round_trip.h"
 #include "thinslab/export/lobe_round_trip.h"
 #include "thinslab/export/round_trip_outputs.h"
 #include "thinslab/export/scene_from_fit.h"
@@ -116,20 +117,17 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(run.session_dir, run.allow_incomplete_capture, &session));
   const std::string manifest = JoinPath(run.session_dir, kSessionManifestName);
   if (session.kind == "laser_lobe") return RenderLobeRoundTrip(run, session, log);
+  if (session.kind == "dot_scan") return RenderDotRoundTrip(run, session, log);
+  if (!run.dots.empty()) return Status::Error("--dots: applies to dot-scan captures");
   if (session.kind != "shadow_map") {
     return Status::Error(manifest + ": kind \"" + session.kind +
-                         "\": the render round trip covers shadow-map captures with their `fit tau` and laser-lobe "
-                         "captures with their `fit phase` (dot scans are not rendered yet, docs/export.md)");
+                         "\": the render round trip covers shadow-map, laser-lobe and dot-scan captures");
   }
   const int samples = run.samples > 0 ? run.samples : kDefaultShadowSamples;
-  const std::string fit_dir = run.fit_dir.empty() ? JoinPath(JoinPath(run.session_dir, "fit"), "tau") : run.fit_dir;
-  if (!FileExists(JoinPath(fit_dir, "tau.exr"))) {
-    return Status::Error(fit_dir +
-                         ": no tau.exr: the round trip renders a `thinslab fit tau` output (run it first or "
-                         "give its folder with --fit)");
-  }
-  const std::string out_dir =
-      run.out_dir.empty() ? JoinPath(JoinPath(run.session_dir, "fit"), "roundtrip") : run.out_dir;
+  std::string fit_dir;
+  THINSLAB_RETURN_IF_ERROR(
+      ResolveRoundTripFit(run.session_dir, run.fit_dir, "tau", "tau.exr", "shadow-map", "fit tau", &fit_dir));
+  const std::string out_dir = RoundTripOutDir(run.session_dir, run.out_dir);
   StagedDirectory out(out_dir, "roundtrip", {{run.session_dir, {"fit"}}, {fit_dir, {}}});
   THINSLAB_RETURN_IF_ERROR(out.Init());
 
@@ -137,21 +135,6 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   ShadowPrediction prediction;
   THINSLAB_RETURN_IF_ERROR(PredictShadow(run.session_dir, session, fit_dir, run.calibration, &prediction));
   const CameraInfo& camera = prediction.data.camera;
-  for (double k : camera.distortion) {
-    if (k != 0) {
-      return Status::Error(manifest + ": camera " + camera.id +
-                           " has lens distortion; Blender renders a pinhole camera, so the round trip needs "
-                           "undistorted frames and zero distortion coefficients");
-    }
-  }
-  const int n = run.downsample;
-  const int width = camera.width_px / n, height = camera.height_px / n;
-  if (width < 8 || height < 8) {
-    return Status::Error("--downsample " + std::to_string(n) + ": leaves " + std::to_string(width) + "x" +
-                         std::to_string(height) + " px of camera " + camera.id + "'s " +
-                         std::to_string(camera.width_px) + "x" + std::to_string(camera.height_px));
-  }
-
   // The fitted layer under the capture's rig, seen by the capture's camera at 1/n resolution
   // (an n x n block of camera pixels is one rendered pixel: centres map as (c + 0.5) / n - 0.5).
   ExportOptions export_options;
@@ -160,11 +143,9 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   if (!scene.layer) return Status::Error(fit_dir + ": not a scattering layer");
   scene.layer->g = prediction.layer.layer_g;
   scene.layer->albedo = prediction.layer.refine_scattering ? prediction.layer.layer_albedo : 0.0;
-  scene.cam_from_sample = camera.cam_from_sample;
-  scene.image_width = width;
-  scene.image_height = height;
-  scene.intrinsics = PinholeIntrinsics{camera.fx_px / n, camera.fy_px / n, (camera.cx_px + 0.5) / n - 0.5,
-                                       (camera.cy_px + 0.5) / n - 0.5};
+  const int n = run.downsample;
+  THINSLAB_RETURN_IF_ERROR(SetCaptureCamera(camera, n, manifest, &scene));
+  const int width = scene.image_width, height = scene.image_height;
   ShadowRig rig;
   rig.board_distance_m = prediction.data.board_distance_m;
   rig.board_albedo = session.rig.board.albedo > 0 ? session.rig.board.albedo : 0.8;
@@ -244,13 +225,7 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
   // On one grey scale, white the brightest clean signal.
   THINSLAB_RETURN_IF_ERROR(WriteRoundTripPictures(out.path(), images, {2, 0, 1, 7, 5}, white));
 
-  nlohmann::json j;
-  j["format"] = "thinslab-roundtrip-summary";
-  j["provenance"] = ProvenanceJson(provenance);
-  j["session"] = run.session_dir;
-  j["fit"] = fit_dir;
-  j["renderer"] = "blender";
-  j["samples"] = samples;
+  nlohmann::json j = RoundTripSummaryHead("shadow_map", provenance, run.session_dir, fit_dir, samples);
   j["downsample"] = n;
   j["image"] = {{"width", width}, {"height", height}};
   j["board_distance_m"] = rig.board_distance_m;

@@ -12,7 +12,8 @@
 // tau, difference, clean, at the render's resolution), roundtrip.png (capture | render |
 // difference | predict), difference.png (render - capture, diverging colours), summary.json and summary.txt (per
 // fitted-tau region: render against capture, predict against capture, render against predict, with the noise levels),
-// options.ini. Laser-lobe captures with their `fit phase`: export/lobe_round_trip.h.
+// options.ini. Laser-lobe captures with their `fit phase`: export/lobe_round_trip.h; dot scans
+// with their `fit dmf`: export/dot_round_trip.h.
 #pragma once
 
 #include <ostream>
@@ -26,15 +27,17 @@ namespace thinslab {
 
 struct RoundTripRun {
   std::string session_dir;
-  std::string fit_dir;              // "" = CAPTURE/fit/tau (shadow maps) or CAPTURE/fit/phase (laser lobes).
+  std::string fit_dir;  // "" = CAPTURE/fit/tau (shadow maps), CAPTURE/fit/phase (lobes), CAPTURE/fit/dmf (dots).
   std::string out_dir;              // "" = CAPTURE/fit/roundtrip.
   std::string blender = "blender";  // The Blender executable (a name on PATH or a path).
   // Cycles samples per pixel of each render; 0: the capture kind's default (32 for shadow maps,
-  // 8192 for the laser probe's 16 x 16 pixels).
+  // 8192 for the laser probe's 16 x 16 pixels, 256 for dots).
   int samples = 0;
   // Camera pixels per rendered pixel along each axis: the render has the capture's intrinsics
   // scaled by 1/downsample, and the capture's images are averaged over downsample^2 blocks.
   int downsample = 2;
+  // Dot scans: the dots rendered, "x,y;x,y" [monitor px]; "" = the capture's validation dots.
+  std::string dots;
   SessionCalibrationOptions calibration;
   bool allow_incomplete_capture = false;
   std::string options_ini;  // The command's effective options (options.ini, the outputs' digest).

@@ -9,6 +9,33 @@
 
 namespace thinslab {
 
+Status ResolveRoundTripFit(const std::string& session_dir, const std::string& given, const std::string& folder,
+                           const std::string& required_file, const std::string& capture_kind,
+                           const std::string& fit_command, std::string* fit_dir) {
+  *fit_dir = given.empty() ? JoinPath(JoinPath(session_dir, "fit"), folder) : given;
+  if (FileExists(JoinPath(*fit_dir, required_file))) return Status::Ok();
+  return Status::Error(*fit_dir + ": no " + required_file + ": the round trip of a " + capture_kind +
+                       " capture renders a `thinslab " + fit_command +
+                       "` output (run it first or give its folder with --fit)");
+}
+
+std::string RoundTripOutDir(const std::string& session_dir, const std::string& given) {
+  return given.empty() ? JoinPath(JoinPath(session_dir, "fit"), "roundtrip") : given;
+}
+
+nlohmann::json RoundTripSummaryHead(const std::string& kind, const Provenance& provenance,
+                                    const std::string& session_dir, const std::string& fit_dir, int samples) {
+  nlohmann::json j;
+  j["format"] = "thinslab-roundtrip-summary";
+  j["provenance"] = ProvenanceJson(provenance);
+  j["kind"] = kind;
+  j["session"] = session_dir;
+  j["fit"] = fit_dir;
+  j["renderer"] = "blender";
+  j["samples"] = samples;
+  return j;
+}
+
 std::string RoundTripFigure(double value, int digits) {
   if (value < 0) return "-";
   std::ostringstream s;
@@ -18,8 +45,31 @@ std::string RoundTripFigure(double value, int digits) {
   return s.str();
 }
 
+Status SetCaptureCamera(const CameraInfo& camera, int downsample, const std::string& manifest, RenderScene* scene) {
+  for (double k : camera.distortion) {
+    if (k != 0) {
+      return Status::Error(manifest + ": camera " + camera.id +
+                           " has lens distortion; Blender renders a pinhole camera, so the round trip needs "
+                           "undistorted frames and zero distortion coefficients");
+    }
+  }
+  const int n = downsample;
+  const int width = camera.width_px / n, height = camera.height_px / n;
+  if (width < 8 || height < 8) {
+    return Status::Error("--downsample " + std::to_string(n) + ": leaves " + std::to_string(width) + "x" +
+                         std::to_string(height) + " px of camera " + camera.id + "'s " +
+                         std::to_string(camera.width_px) + "x" + std::to_string(camera.height_px));
+  }
+  scene->cam_from_sample = camera.cam_from_sample;
+  scene->image_width = width;
+  scene->image_height = height;
+  scene->intrinsics = PinholeIntrinsics{camera.fx_px / n, camera.fy_px / n, (camera.cx_px + 0.5) / n - 0.5,
+                                        (camera.cy_px + 0.5) / n - 0.5};
+  return Status::Ok();
+}
+
 Status WriteRoundTripPictures(const std::string& dir, const Image& images, const RoundTripChannels& channels,
-                              double white) {
+                              double white, const std::string& suffix) {
   const int w = images.width(), h = images.height();
   Image magnified_difference(w, h), invalid(w, h);
   for (int y = 0; y < h; ++y) {
@@ -29,7 +79,7 @@ Status WriteRoundTripPictures(const std::string& dir, const Image& images, const
     }
   }
   THINSLAB_RETURN_IF_ERROR(
-      WritePngAtomically(JoinPath(dir, "roundtrip.png"),
+      WritePngAtomically(JoinPath(dir, "roundtrip" + suffix + ".png"),
                          SideBySide({LabelledRadianceTile(images, channels.measured, white, "capture"),
                                      LabelledRadianceTile(images, channels.rendered, white, "Blender"),
                                      LabelledRadianceTile(magnified_difference, 0, white, "|diff| x5"),
@@ -39,7 +89,8 @@ Status WriteRoundTripPictures(const std::string& dir, const Image& images, const
   difference_colors.min_value = -0.1 * white;
   difference_colors.max_value = 0.1 * white;
   difference_colors.label = "render - capture";
-  return WriteFalseColorPng(JoinPath(dir, "difference.png"), images, channels.difference, &invalid, difference_colors);
+  return WriteFalseColorPng(JoinPath(dir, "difference" + suffix + ".png"), images, channels.difference, &invalid,
+                            difference_colors);
 }
 
 Status FinishRoundTrip(StagedDirectory* out, const nlohmann::json& summary, const std::string& text,

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// What both render round trips (export/round_trip.h: shadow maps; export/lobe_round_trip.h:
-// laser lobes) write the same way: the pictures, the closing files and the figures' format.
+// What the render round trips (export/round_trip.h: shadow maps; export/lobe_round_trip.h: laser
+// lobes; export/dot_round_trip.h: dot scans) share: the capture's camera, the pictures, the
+// closing files and the figures' format.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -9,9 +10,29 @@
 
 #include "thinslab/core/file.h"
 #include "thinslab/core/image.h"
+#include "thinslab/core/provenance.h"
+#include "thinslab/core/session.h"
 #include "thinslab/core/status.h"
+#include "thinslab/export/render_scene.h"
 
 namespace thinslab {
+
+// The capture's camera at 1/downsample resolution in `scene` (pose, pinhole intrinsics: an n x n
+// block of camera pixels is one rendered pixel, centres mapping as (c + 0.5) / n - 0.5). Refuses a
+// camera with lens distortion (Blender renders a pinhole) and a downsample that leaves fewer than
+// 8 px per side, naming `manifest` or --downsample.
+Status SetCaptureCamera(const CameraInfo& camera, int downsample, const std::string& manifest, RenderScene* scene);
+
+// The fit a round trip renders: `given` (--fit), else CAPTURE/fit/<folder>; an error naming the
+// folder and `fit_command` when it lacks `required_file`.
+Status ResolveRoundTripFit(const std::string& session_dir, const std::string& given, const std::string& folder,
+                           const std::string& required_file, const std::string& capture_kind,
+                           const std::string& fit_command, std::string* fit_dir);
+// `given` (--out), else CAPTURE/fit/roundtrip.
+std::string RoundTripOutDir(const std::string& session_dir, const std::string& given);
+// summary.json's first fields: format, provenance, kind, session, fit, renderer, samples.
+nlohmann::json RoundTripSummaryHead(const std::string& kind, const Provenance& provenance,
+                                    const std::string& session_dir, const std::string& fit_dir, int samples);
 
 // A relative figure for summary.txt: fixed digits, "-" for a negative (not measured) value.
 std::string RoundTripFigure(double value, int digits = 4);
@@ -23,8 +44,9 @@ std::string RoundTripFigure(double value, int digits = 4);
 struct RoundTripChannels {
   int measured = 0, rendered = 0, predicted = 0, difference = 0, valid = 0;
 };
+// `suffix` goes before the extension (roundtrip_dot0.png).
 Status WriteRoundTripPictures(const std::string& dir, const Image& images, const RoundTripChannels& channels,
-                              double white);
+                              double white, const std::string& suffix = "");
 
 // summary.json, summary.txt and options.ini (when given) into `out`, which is then committed; the
 // text also goes to `log` with the output folder.

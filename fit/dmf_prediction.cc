@@ -74,7 +74,9 @@ Status ReadDmfFit(const std::string& fit_dir, DmfFitOnDisk* fit) {
   if (!(fit->monitor_pixel_pitch_m > 0) || !(median_radiance > 0) || !(radius > 0) || !(fit->glass_thickness_m >= 0)) {
     return Status::Error(summary_file + ": monitor pitch, median dot radiance and dot radius must be > 0, thickness >= 0");
   }
-  fit->dot_intensity = median_radiance * kPi * Sqr(radius * fit->monitor_pixel_pitch_m);
+  fit->dot_radiance = median_radiance;
+  fit->dot_radius_m = radius * fit->monitor_pixel_pitch_m;
+  fit->dot_intensity = median_radiance * kPi * Sqr(fit->dot_radius_m);
 
   Image maps;
   THINSLAB_RETURN_IF_ERROR(ReadExr(maps_file, &maps));

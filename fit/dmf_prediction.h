@@ -33,6 +33,8 @@ struct DmfFitOnDisk {
   Rigid3d sample_from_monitor;
   double monitor_pixel_pitch_m = 0;
   double dot_intensity = 0;     // L_q A [DN/us m^2]: median dot radiance times the dot's area.
+  double dot_radiance = 0;      // L_q [DN/us]: the fit's median dot radiance.
+  double dot_radius_m = 0;      // The dot's radius on the monitor.
 };
 
 // Reads FIT_DIR/maps.exr, ndf_atlas.exr and summary.json of `thinslab fit dmf`; errors name the

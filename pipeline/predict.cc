@@ -19,11 +19,9 @@
 #include "thinslab/fit/dmf_prediction.h"
 
 namespace thinslab {
-namespace {
-
 
 // "x,y;x,y" [monitor px].
-Status ParseDots(const std::string& text, std::vector<Eigen::Vector2d>* dots) {
+Status ParseDotList(const std::string& text, std::vector<Eigen::Vector2d>* dots) {
   std::stringstream items(text);
   std::string item;
   while (std::getline(items, item, ';')) {
@@ -38,6 +36,44 @@ Status ParseDots(const std::string& text, std::vector<Eigen::Vector2d>* dots) {
   if (dots->empty()) return Status::Error("--dots: no dot given; expected 'x,y;x,y;...'");
   return Status::Ok();
 }
+
+Status ValidationDots(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                      std::vector<Eigen::Vector2d>* dots) {
+  dots->clear();
+  for (const FrameRecord* f : session.ValidationFrames("dot")) {
+    if (f->camera_id != camera.id || !f->light.dot_px) continue;
+    bool seen = false;
+    for (const Eigen::Vector2d& d : *dots) seen = seen || (d - *f->light.dot_px).norm() < 1e-9;
+    if (!seen) dots->push_back(*f->light.dot_px);
+  }
+  if (dots->empty()) {
+    return Status::Error(JoinPath(session_dir, kSessionManifestName) +
+                         ": no validation dot frames (frames[k].validation); give the dots with --dots 'x,y;...'");
+  }
+  return Status::Ok();
+}
+
+Status MergeDotFrames(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                      const SessionCalibration& calibration, const FrameNoiseModel& noise,
+                      const Eigen::Vector2d& dot_px, HdrImage* hdr, bool* found) {
+  // The capture's frames of this dot, fitted or validation, in the fit's sample state.
+  std::vector<const FrameRecord*> frames;
+  for (const FrameRecord& f : session.frames) {
+    if (f.kind == "dot" && f.status != FrameStatus::kFailed && f.camera_id == camera.id && f.light.dot_px &&
+        (*f.light.dot_px - dot_px).norm() < 1e-9) {
+      frames.push_back(&f);
+    }
+  }
+  *found = !frames.empty();
+  if (frames.empty()) return Status::Ok();
+  SessionMergeInfo info;
+  const auto darks = session.UsableFrames("dark", frames.front()->sample_state);
+  return MergeSessionBracket(session_dir, session, camera, frames, darks, calibration.response_or_null(),
+                             HdrMergeOptions(), 1.0, noise, hdr, &info)
+      .WithContext("dot (" + std::to_string(dot_px.x()) + ", " + std::to_string(dot_px.y()) + ")");
+}
+
+namespace {
 
 // Which fit FIT_DIR holds, from its files; without --fit, the capture kind's fit folder.
 Status ResolveFit(const std::string& session_dir, const Session& session, std::string* fit_dir, std::string* kind) {
@@ -78,7 +114,7 @@ Status PredictCapture(const PredictCaptureRun& run, std::ostream& log) {
   Session session;
   THINSLAB_RETURN_IF_ERROR(ReadCaptureForCommand(session_dir, allow_incomplete, &session));
   std::vector<Eigen::Vector2d> dots;
-  if (!dots_text.empty()) THINSLAB_RETURN_IF_ERROR(ParseDots(dots_text, &dots));
+  if (!dots_text.empty()) THINSLAB_RETURN_IF_ERROR(ParseDotList(dots_text, &dots));
   std::string kind;
   THINSLAB_RETURN_IF_ERROR(ResolveFit(session_dir, session, &fit_dir, &kind));
   if (!dots.empty() && kind != "dmf") {
@@ -104,18 +140,7 @@ Status PredictCapture(const PredictCaptureRun& run, std::ostream& log) {
   THINSLAB_RETURN_IF_ERROR(LoadSessionCalibration(session_dir, calibration_options, &camera, &calibration));
 
   // The dots: given, else the capture's validation dots.
-  if (dots.empty()) {
-    for (const FrameRecord* f : session.ValidationFrames("dot")) {
-      if (f->camera_id != camera.id || !f->light.dot_px) continue;
-      bool seen = false;
-      for (const Eigen::Vector2d& d : dots) seen = seen || (d - *f->light.dot_px).norm() < 1e-9;
-      if (!seen) dots.push_back(*f->light.dot_px);
-    }
-    if (dots.empty()) {
-      return Status::Error(manifest + ": no validation dot frames (frames[k].validation); give the dots to predict "
-                                      "with --dots 'x,y;...'");
-    }
-  }
+  if (dots.empty()) THINSLAB_RETURN_IF_ERROR(ValidationDots(session_dir, session, camera, &dots));
 
   FrameNoiseModel noise;
   THINSLAB_RETURN_IF_ERROR(ResolveFrameNoise(session_dir, session, camera, &noise));
@@ -129,26 +154,14 @@ Status PredictCapture(const PredictCaptureRun& run, std::ostream& log) {
       << (fit.atlas_stride > 1 ? ": points between the stored ones take the nearest stored NDF" : "") << ")\n";
   for (size_t k = 0; k < dots.size(); ++k) {
     Image image = PredictDotImage(fit, camera, dots[k]);
-    // The capture's frames of this dot, fitted or validation, in the fit's sample state.
-    std::vector<const FrameRecord*> frames;
-    for (const FrameRecord& f : session.frames) {
-      if (f.kind == "dot" && f.status != FrameStatus::kFailed && f.camera_id == camera.id && f.light.dot_px &&
-          (*f.light.dot_px - dots[k]).norm() < 1e-9) {
-        frames.push_back(&f);
-      }
-    }
-    nlohmann::json entry = {{"dot_px", {dots[k].x(), dots[k].y()}}, {"file", "dot_" + std::to_string(k) + ".exr"},
-                            {"measured", !frames.empty()}};
+    nlohmann::json entry = {{"dot_px", {dots[k].x(), dots[k].y()}}, {"file", "dot_" + std::to_string(k) + ".exr"}};
     char line[256];
-    if (!frames.empty()) {
-      HdrImage hdr;
-      SessionMergeInfo info;
-      const auto darks = session.UsableFrames("dark", frames.front()->sample_state);
-      THINSLAB_RETURN_IF_ERROR(MergeSessionBracket(session_dir, session, camera, frames, darks,
-                                                   calibration.response_or_null(), HdrMergeOptions(), 1.0, noise, &hdr,
-                                                   &info)
-                                   .WithContext("dot (" + std::to_string(dots[k].x()) + ", " +
-                                                std::to_string(dots[k].y()) + ")"));
+    HdrImage hdr;
+    bool measured = false;
+    THINSLAB_RETURN_IF_ERROR(
+        MergeDotFrames(session_dir, session, camera, calibration, noise, dots[k], &hdr, &measured));
+    entry["measured"] = measured;
+    if (measured) {
       Image both(image.width(), image.height(), {"predicted", "valid", "measured", "variance"});
       for (int v = 0; v < image.height(); ++v) {
         for (int u = 0; u < image.width(); ++u) {
@@ -191,6 +204,5 @@ Status PredictCapture(const PredictCaptureRun& run, std::ostream& log) {
   log << txt.str() << "wrote " << out_dir << "\n";
   return Status::Ok();
 }
-
 
 }  // namespace thinslab

@@ -9,10 +9,15 @@
 //   summary.txt
 #pragma once
 
+#include <Eigen/Core>
 #include <ostream>
 #include <string>
+#include <vector>
 
+#include "thinslab/calib/frame_noise.h"
+#include "thinslab/calib/hdr_merge.h"
 #include "thinslab/calib/session_calibration.h"
+#include "thinslab/core/session.h"
 #include "thinslab/core/status.h"
 
 namespace thinslab {
@@ -29,5 +34,17 @@ struct PredictCaptureRun {
   std::string options_ini;
 };
 Status PredictCapture(const PredictCaptureRun& run, std::ostream& log);
+
+// "x,y;x,y" [monitor px]; errors name --dots.
+Status ParseDotList(const std::string& text, std::vector<Eigen::Vector2d>* dots);
+// The distinct dot positions of the capture's validation dot frames of `camera`; an error naming
+// the manifest (and --dots) when it has none.
+Status ValidationDots(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                      std::vector<Eigen::Vector2d>* dots);
+// The HDR merge (DN/us, black level and darks removed) of the capture's frames of the dot at
+// `dot_px`, fitted or validation; *found is false (and hdr untouched) when it has none.
+Status MergeDotFrames(const std::string& session_dir, const Session& session, const CameraInfo& camera,
+                      const SessionCalibration& calibration, const FrameNoiseModel& noise,
+                      const Eigen::Vector2d& dot_px, HdrImage* hdr, bool* found);
 
 }  // namespace thinslab

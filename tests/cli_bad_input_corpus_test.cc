@@ -731,7 +731,7 @@ std::vector<Case> Cases() {
 
       // ---- thinslab roundtrip ----
       C("roundtrip_laser_without_fit", "laser", none, "roundtrip {in} --out {out}", {"fit/phase", "fit phase"}),
-      C("roundtrip_dot_scan", "dots", none, "roundtrip {in} --out {out}", {"session.json", "dot scans"}),
+      C("roundtrip_dot_scan_without_fit", "dots", none, "roundtrip {in} --out {out}", {"fit/dmf", "fit dmf"}),
       C("roundtrip_without_fit", "shadow", none, "roundtrip {in} --out {out}", {"fit/tau", "fit tau"}),
       C("roundtrip_tau_truncated", "shadow_fit", Truncate("{in}/fit/tau/tau.exr", 200), "roundtrip {in} --out {out}",
         {"tau.exr"}),
