@@ -24,7 +24,7 @@ int RunRoundTrip(int argc, char** argv) {
   parser.AddString("out", &run.out_dir, "output folder (default CAPTURE/fit/roundtrip)");
   parser.AddString("blender", &run.blender, "the Blender executable (a name on PATH or a path)");
   parser.AddInt("samples", &run.samples,
-                "Cycles samples per pixel of each render (0: 32 for shadow maps, 8192 for laser lobes, 256 for dots)");
+                "Cycles samples per pixel of each render (0: 32 for shadow maps, 8192 for laser lobes, 1024 for dots)");
   parser.AddInt("downsample", &run.downsample, "camera pixels per rendered pixel along each axis");
   parser.AddString("dots", &run.dots,
                    "dot scans: the dots to render, 'x,y;x,y' in monitor px (default the capture's validation dots)");

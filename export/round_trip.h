@@ -31,7 +31,7 @@ struct RoundTripRun {
   std::string out_dir;              // "" = CAPTURE/fit/roundtrip.
   std::string blender = "blender";  // The Blender executable (a name on PATH or a path).
   // Cycles samples per pixel of each render; 0: the capture kind's default (32 for shadow maps,
-  // 8192 for the laser probe's 16 x 16 pixels, 256 for dots).
+  // 8192 for the laser probe's 16 x 16 pixels, 1024 for dots).
   int samples = 0;
   // Camera pixels per rendered pixel along each axis: the render has the capture's intrinsics
   // scaled by 1/downsample, and the capture's images are averaged over downsample^2 blocks.
