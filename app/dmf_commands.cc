@@ -48,6 +48,11 @@ int RunFitDmf(int argc, char** argv) {
   parser.AddDouble("eta", &run.eta, "slab refractive index; 0 = the manifest's sample.glass_ior");
   parser.AddInt("ndf-resolution", &run.fit.point.ndf_resolution, "N of the N x N NDF grid");
   parser.AddDouble("smoothness", &run.fit.point.smoothness, "weight of the Eq. 17 Laplacian rows");
+  parser.AddString("ndf-tail", &run.fit.point.ndf_tail,
+                   "the NDF beyond the hull of the measured cells: 'smooth' (Eq. 17's fill) or 'family' (the "
+                   "analytic family fitted to the measured cells)");
+  parser.AddDouble("ndf-tail-max-misfit", &run.fit.point.ndf_tail_max_misfit,
+                   "--ndf-tail family only where the family fits the measured cells within this relative L2 misfit");
   parser.AddBool("fit-smith", &run.fit.point.fit_smith_alpha, "fit the Smith roughness (Levenberg-Marquardt)");
   parser.AddDouble("alpha-lobe-fraction", &run.fit.point.alpha_lobe_fraction,
                    "Eq. 18 compares mean directions over the dots above this fraction of the lobe's peak");

@@ -51,6 +51,19 @@ EquivalentRoughness FitEquivalentRoughness(const std::vector<double>& log_ndf, c
 // alphas and misfits are their representatives' weighted means).
 void DecideFamily(const EquivalentRoughnessOptions& options, EquivalentRoughness* r);
 
+// The family tail beyond the measured NDF: the analytic distribution (family, isotropic roughness
+// and scale) nearest to ln D over the cells with `use[cell]` (same misfit as
+// FitEquivalentRoughness, D not normalised, so `scale` carries D's level).
+struct FamilyTail {
+  NdfFamily family = NdfFamily::kUndecided;
+  double alpha = 0, scale = 0, misfit = 1;
+};
+FamilyTail FitFamilyTail(const std::vector<double>& log_d, const DmfNdfGrid& grid, const std::vector<bool>& use,
+                         const EquivalentRoughnessOptions& options = EquivalentRoughnessOptions());
+// scale x D of the family at roughness alpha at the grid cell's centre (Walter et al. 2007,
+// Eq. 33 GGX, Eq. 25 Beckmann); 0 outside the disk.
+double FamilyTailD(const FamilyTail& tail, const DmfNdfGrid& grid, int cell);
+
 RoughFace RoughFaceOf(double top_face_weight, const EquivalentRoughnessOptions& options = EquivalentRoughnessOptions());
 
 }  // namespace thinslab

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 
+#include "thinslab/core/math.h"
 #include "thinslab/optics/microfacet.h"
 
 namespace thinslab {
@@ -38,6 +39,42 @@ TEST(EquivalentRoughness, RecoversFamilyAndRoughnessOfAnalyticNdfs) {
     EXPECT_EQ(beckmann.family, NdfFamily::kBeckmann) << alpha;
     EXPECT_NEAR(beckmann.roughness, alpha, 0.03 * alpha) << alpha;
   }
+}
+
+// The tail beyond the measured cells (DmfPointFitOptions::ndf_tail "family"): from the cells of a
+// level-2 table within a disk of radius 0.35 (what the dots of one point may reach), the family,
+// roughness and level come back, so the projected integral of measured cells plus tail is 2.
+TEST(EquivalentRoughness, FamilyTailFromTheMeasuredCellsRestoresTheIntegral) {
+  const DmfNdfGrid grid(32);
+  std::vector<bool> measured(grid.num_cells(), false);
+  for (int cell = 0; cell < grid.num_cells(); ++cell) {
+    measured[cell] = std::hypot(grid.CellCentre(cell % grid.n()), grid.CellCentre(cell / grid.n())) < 0.35;
+  }
+  for (NdfFamily family : {NdfFamily::kGgx, NdfFamily::kBeckmann}) {
+    std::vector<double> log_d =
+        family == NdfFamily::kGgx ? Tabulate(GgxDistribution(0.3), grid) : Tabulate(BeckmannDistribution(0.3), grid);
+    for (double& v : log_d) v += std::log(2.0);
+    const FamilyTail tail = FitFamilyTail(log_d, grid, measured);
+    EXPECT_EQ(tail.family, family);
+    EXPECT_NEAR(tail.alpha, 0.3, 0.01);
+    EXPECT_NEAR(tail.scale, 2.0, 0.05);
+    EXPECT_LT(tail.misfit, 0.05);
+    std::vector<double> filled = log_d;
+    double unmeasured_mass = 0;
+    for (int cell = 0; cell < grid.num_cells(); ++cell) {
+      if (!grid.InDisk(cell) || measured[cell]) continue;
+      unmeasured_mass += std::exp(log_d[cell]);
+      filled[cell] = std::log(std::max(FamilyTailD(tail, grid, cell), 1e-300));
+    }
+    // A GGX tail outside radius 0.35 holds a large share of the mass, which is why it matters.
+    if (family == NdfFamily::kGgx) {
+      EXPECT_GT(unmeasured_mass * Sqr(grid.cell_width()), 0.5);
+    }
+    EXPECT_NEAR(grid.ProjectedIntegral(filled), grid.ProjectedIntegral(log_d), 0.02 * grid.ProjectedIntegral(log_d));
+  }
+  // Too few cells: no tail (scale 0).
+  EXPECT_EQ(FitFamilyTail(Tabulate(GgxDistribution(0.3), grid), grid, std::vector<bool>(grid.num_cells(), false)).scale,
+            0.0);
 }
 
 // 10 % log-normal cell noise (the tabulated fit's scatter) moves the roughness by little.

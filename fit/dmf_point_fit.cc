@@ -11,6 +11,7 @@
 #include <iomanip>
 #include <sstream>
 
+#include "thinslab/fit/dmf_equivalent_roughness.h"
 #include "thinslab/fit/small_dense_solve.h"
 #include "thinslab/optics/dual_microfacet_btdf.h"
 #include "thinslab/optics/microfacet.h"
@@ -149,18 +150,76 @@ double LookupStencil(const DmfNdfGrid::Stencil& s, const std::vector<double>& lo
   return v;
 }
 
+// The cells some row's stencil touches.
+std::vector<bool> MeasuredCells(const std::vector<Row>& rows, const DmfNdfGrid& grid) {
+  std::vector<bool> measured(grid.num_cells(), false);
+  for (const Row& r : rows) {
+    for (const DmfNdfGrid::Stencil* s : {&r.top, &r.bottom}) {
+      for (int k = 0; k < 4; ++k) {
+        if (s->weights[k] > 0) measured[s->cells[k]] = true;
+      }
+    }
+  }
+  return measured;
+}
+
+// DmfPointFitOptions::ndf_tail "family": beyond the convex hull of the measured cells, ln D is the
+// family fitted to the measured cells (FitFamilyTail) instead of Eq. 17's fill, which falls
+// towards the boundary value ln 1e-6 within a few cells and so drops the mass of a long (GGX)
+// tail that no dot reaches; k_s, the integral of D, then reads low (issue #24).
+// Returns whether it did; *tail is the family fitted, whether used or not.
+bool FillTailBeyondMeasured(const std::vector<Row>& rows, const DmfNdfGrid& grid,
+                            const EquivalentRoughnessOptions& options, double max_misfit, std::vector<double>* log_d,
+                            FamilyTail* tail_out) {
+  const std::vector<bool> measured = MeasuredCells(rows, grid);
+  const FamilyTail tail = FitFamilyTail(*log_d, grid, measured, options);
+  *tail_out = tail;
+  if (!(tail.scale > 0) || tail.misfit > max_misfit) return false;
+  // Andrew's monotone chain over the measured cells' (col, row), counter-clockwise.
+  using P = std::array<int, 2>;
+  std::vector<P> points;
+  for (int cell = 0; cell < grid.num_cells(); ++cell) {
+    if (measured[cell]) points.push_back({cell % grid.n(), cell / grid.n()});
+  }
+  std::sort(points.begin(), points.end());
+  auto cross = [](const P& o, const P& a, const P& b) {
+    return static_cast<int64_t>(a[0] - o[0]) * (b[1] - o[1]) - static_cast<int64_t>(a[1] - o[1]) * (b[0] - o[0]);
+  };
+  std::vector<P> hull(2 * points.size());
+  size_t k = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+    hull[k++] = points[i];
+  }
+  for (size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+    hull[k++] = points[i];
+  }
+  hull.resize(k > 0 ? k - 1 : 0);
+  if (hull.size() < 3) return false;
+  auto inside_hull = [&](const P& p) {
+    for (size_t e = 0; e < hull.size(); ++e) {
+      if (cross(hull[e], hull[(e + 1) % hull.size()], p) < 0) return false;
+    }
+    return true;
+  };
+  for (int cell = 0; cell < grid.num_cells(); ++cell) {
+    if (!grid.InDisk(cell) || measured[cell] || inside_hull({cell % grid.n(), cell / grid.n()})) continue;
+    const double d = FamilyTailD(tail, grid, cell);
+    if (d > 0) (*log_d)[cell] = std::max(std::log(d), DmfNdfGrid::kLogEpsilon);
+  }
+  return true;
+}
+
 // DmfPointFit::measured_ndf_fraction: the projected integral of D over the cells some row's
 // stencil touches, over the whole integral `total`.
 double MeasuredNdfFraction(const std::vector<Row>& rows, const DmfNdfGrid& grid, const std::vector<double>& log_d,
                            double total) {
   if (!(total > 0)) return 0;
+  const std::vector<bool> touched = MeasuredCells(rows, grid);
   std::vector<double> measured(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
-  for (const Row& r : rows) {
-    for (const DmfNdfGrid::Stencil* s : {&r.top, &r.bottom}) {
-      for (int k = 0; k < 4; ++k) {
-        if (s->weights[k] > 0) measured[s->cells[k]] = log_d[s->cells[k]];
-      }
-    }
+  for (int cell = 0; cell < grid.num_cells(); ++cell) {
+    if (touched[cell]) measured[cell] = log_d[cell];
   }
   return std::min(1.0, grid.ProjectedIntegral(measured) / total);
 }
@@ -309,6 +368,10 @@ bool DmfPointFitOptions::Check(std::string* error) const {
     e << "roughness.one_face_alpha must be in (0.5, 1], got " << roughness.one_face_alpha;
   else if (!(roughness.min_relative_d >= 0 && roughness.min_relative_d < 1))
     e << "roughness.min_relative_d must be in [0, 1), got " << roughness.min_relative_d;
+  else if (ndf_tail != "smooth" && ndf_tail != "family")
+    e << "ndf_tail must be 'smooth' or 'family', got '" << ndf_tail << "'";
+  else if (!(ndf_tail_max_misfit >= 0))
+    e << "ndf_tail_max_misfit must be >= 0, got " << ndf_tail_max_misfit;
   else if (!(min_unit_transmittance >= 0 && min_unit_transmittance < 1))
     e << "min_unit_transmittance must be in [0, 1), got " << min_unit_transmittance;
   *error = e.str();
@@ -541,16 +604,39 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   fit.log_rms_residual = std::sqrt(sum_sq / rows.size());
 
   // k_s: the level D absorbed (Eq. 13), D normalised to unit projected area.
+  auto normalise = [&grid](const std::vector<double>& log_unnormalised, double k_s) {
+    const double log_k = std::log(k_s);
+    std::vector<double> log_ndf(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
+    for (int cell = 0; cell < grid.num_cells(); ++cell) {
+      if (grid.InDisk(cell)) log_ndf[cell] = log_unnormalised[cell] - log_k;
+    }
+    return log_ndf;
+  };
   fit.k_s = grid.ProjectedIntegral(log_d);
+  // The measured share and the equivalent roughness are judged on Eq. 17's fill: the share is a
+  // sampling diagnostic (how much of the lobe the dots cover), and a family tail would only
+  // restate the family to the roughness fit.
   fit.measured_ndf_fraction = MeasuredNdfFraction(rows, grid, log_d, fit.k_s);
-  const double log_k = std::log(fit.k_s);
-  fit.log_ndf.assign(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
-  for (int cell = 0; cell < grid.num_cells(); ++cell) {
-    fit.log_ndf[cell] = grid.InDisk(cell) ? log_d[cell] - log_k : DmfNdfGrid::kLogEpsilon;
+  fit.log_ndf = normalise(log_d, fit.k_s);
+  fit.roughness = FitEquivalentRoughness(fit.log_ndf, grid, options.roughness);
+  if (options.ndf_tail == "family") {
+    FamilyTail tail;
+    const double k_s_smooth = fit.k_s;
+    const bool filled =
+        FillTailBeyondMeasured(rows, grid, options.roughness, options.ndf_tail_max_misfit, &log_d, &tail);
+    if (filled) {
+      fit.k_s = grid.ProjectedIntegral(log_d);
+      fit.log_ndf = normalise(log_d, fit.k_s);
+    }
+    if (trace != nullptr) {
+      *trace << "  tail beyond the measured cells' hull: " << NdfFamilyName(tail.family) << " " << tail.alpha
+             << " fitted to the measured cells (misfit " << tail.misfit << ", limit " << options.ndf_tail_max_misfit
+             << ")" << (filled ? "" : ", not used: Eq. 17's fill stays") << "; k_s " << k_s_smooth << " -> " << fit.k_s
+             << "\n";
+    }
   }
   fit.alpha = alpha;
   fit.transmittance = DirectionalTransmittance(fit, grid, options.eta, slice.o);
-  fit.roughness = FitEquivalentRoughness(fit.log_ndf, grid, options.roughness);
   if (trace != nullptr) {
     *trace << "  result: top_face_weight (alpha) " << fit.alpha << ", smith_alpha " << fit.smith_alpha << ", k_s "
            << fit.k_s << ", log RMS residual " << fit.log_rms_residual << ", measured NDF fraction "

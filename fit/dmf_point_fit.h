@@ -84,6 +84,17 @@ struct DmfPointFitOptions {
   int ndf_resolution = 32;         // N: N x N cells of the orthographic NDF grid (Dai Table 1: 32 x 32).
   double eta = 1.5;                // Slab index over air (known, Dai Sec. 4.2).
   double smoothness = 0.03;        // Weight of the Eq. 17 Laplacian rows against the Eq. 16 rows.
+  // What the NDF holds beyond the convex hull of the cells a measurement touches: "smooth", Eq.
+  // 17's Laplacian fill towards the boundary value (Dai et al. 2009), which drops the mass of a
+  // long (GGX) tail no dot reaches, so k_s reads low; "family", the analytic family (GGX or
+  // Beckmann, isotropic) fitted to the measured cells, with their level, where it fits them
+  // within ndf_tail_max_misfit (relative L2; else the smooth fill stays). Not in Dai et al.
+  // (issue #24; docs/models/dual_microfacet_fit.md "The NDF's unmeasured tail").
+  std::string ndf_tail = "family";
+  // Measured (2026-12-08, 10 x 10 dots): one-sided isotropic regions' representatives read
+  // 0.07-0.36 (10th-90th percentiles), anisotropic and two-sided ones 0.23-0.77 (medians
+  // 0.38-0.65), where an isotropic tail overstates k_s.
+  double ndf_tail_max_misfit = 0.35;
   double initial_smith_alpha = 0.2;  // Dai Sec. 4.2: "Iteration is first performed assuming alpha_b = 0.2".
   bool fit_smith_alpha = true;
   double alpha_tolerance = 0.01;   // Dai: stop when alpha changes by less than 0.01.

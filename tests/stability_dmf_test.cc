@@ -235,6 +235,16 @@ TEST_F(DmfStability, FlagsRarelyMarkCorrectPoints) {
     }
     EXPECT_GT(correct, 150) << "most points of the 8 rough regions are correct";
     ExpectEquivalentNdf(r, float_frames ? " (float frames)" : "");
+    // k_s of the one-sided isotropic regions (issue #24): Eq. 17's fill dropped the GGX tail no dot
+    // reaches, and k_s read 0.79-0.83 of the truth on these captures (ggx_top, ggx_bottom);
+    // the fitted family's tail beyond the measured cells (DmfPointFitOptions::ndf_tail) reads
+    // 0.91-1.03.
+    for (const char* name : {"ggx_top", "ggx_bottom", "beckmann_top"}) {
+      const DmfRegionAccuracy& a = r.regions.at(name);
+      std::cout << name << (float_frames ? " (float frames)" : "") << ": median k_s " << a.median_k_s << " (true "
+                << a.true_k_s << ")\n";
+      EXPECT_NEAR(a.median_k_s / a.true_k_s, 1.0, 0.12) << name << (float_frames ? " (float frames)" : "");
+    }
   }
 }
 
