@@ -15,7 +15,6 @@
 #include "thinslab/core/math.h"
 #include "thinslab/core/provenance.h"
 #include "thinslab/export/blender_render.h"
-#include "thinslab/export/blender_scene.h"
 #include "thinslab/export/round_trip_outputs.h"
 #include "thinslab/export/scene_from_fit.h"
 #include "thinslab/fit/dmf_prediction.h"
@@ -94,11 +93,9 @@ Status RenderDotRoundTrip(const RoundTripRun& run, const Session& session, std::
                         " resolution, the monitor's dots one at a time at the fit's median dot radiance");
 
   const int samples = run.samples > 0 ? run.samples : kDefaultSamples;
-  const std::string scene_dir = JoinPath(out.path(), "scene");
-  THINSLAB_RETURN_IF_ERROR(CreateDirectories(scene_dir));
   const Provenance provenance{"roundtrip", run.session_dir, fit_dir, run.options_ini};
-  THINSLAB_RETURN_IF_ERROR(WriteBlenderScene(scene, scene_dir, provenance));
-  const std::string prefix = JoinPath(scene_dir, "render");
+  std::string scene_dir, prefix;
+  THINSLAB_RETURN_IF_ERROR(WriteRoundTripScene(scene, out.path(), provenance, &scene_dir, &prefix));
   const int passes = 2 * static_cast<int>(dots.size());
   log << "roundtrip: rendering " << dots.size() << " dots, " << width << "x" << height << " px at " << samples
       << " samples, " << passes << " passes, with " << run.blender

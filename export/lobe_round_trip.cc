@@ -14,7 +14,6 @@
 #include "thinslab/core/png_io.h"
 #include "thinslab/core/provenance.h"
 #include "thinslab/export/blender_render.h"
-#include "thinslab/export/blender_scene.h"
 #include "thinslab/export/round_trip_outputs.h"
 #include "thinslab/optics/dirty_glass.h"
 #include "thinslab/pipeline/prediction_report.h"
@@ -137,11 +136,9 @@ Status RenderLobeRoundTrip(const RoundTripRun& run, const Session& session, std:
                         "Lambertian emitter in its own light group, an orthographic camera along the beam");
 
   const int samples = run.samples > 0 ? run.samples : kDefaultSamples;
-  const std::string scene_dir = JoinPath(out.path(), "scene");
-  THINSLAB_RETURN_IF_ERROR(CreateDirectories(scene_dir));
   const Provenance provenance{"roundtrip", run.session_dir, fit_dir, run.options_ini};
-  THINSLAB_RETURN_IF_ERROR(WriteBlenderScene(scene, scene_dir, provenance));
-  const std::string prefix = JoinPath(scene_dir, "render");
+  std::string scene_dir, prefix;
+  THINSLAB_RETURN_IF_ERROR(WriteRoundTripScene(scene, out.path(), provenance, &scene_dir, &prefix));
   log << "roundtrip: rendering " << rings.size() << " rings of the lobe (" << kProbePixels << "x" << kProbePixels
       << " px along the beam) at " << samples << " samples, 2 passes, with " << run.blender
       << " (log: " << JoinPath(JoinPath(out_dir, "scene"), "blender.log") << ")\n";

@@ -13,7 +13,6 @@
 #include "thinslab/core/provenance.h"
 #include "thinslab/core/session_io.h"
 #include "thinslab/export/blender_render.h"
-#include "thinslab/export/blender_scene.h"
 #include "thinslab/export/dot_round_trip.h"
 #include "thinslab/export/lobe_round_trip.h"
 #include "thinslab/export/round_trip_outputs.h"
@@ -160,11 +159,9 @@ Status RenderRoundTrip(const RoundTripRun& run, std::ostream& log) {
                         " resolution, the board at " + std::to_string(rig.board_distance_m * 1e3) +
                         " mm lit by a collimated light; the layer is seen by light only");
 
-  const std::string scene_dir = JoinPath(out.path(), "scene");
-  THINSLAB_RETURN_IF_ERROR(CreateDirectories(scene_dir));
   const Provenance provenance{"roundtrip", run.session_dir, fit_dir, run.options_ini};
-  THINSLAB_RETURN_IF_ERROR(WriteBlenderScene(scene, scene_dir, provenance));
-  const std::string prefix = JoinPath(scene_dir, "render");
+  std::string scene_dir, prefix;
+  THINSLAB_RETURN_IF_ERROR(WriteRoundTripScene(scene, out.path(), provenance, &scene_dir, &prefix));
   log << "roundtrip: rendering " << width << "x" << height << " px at " << samples << " samples, 3 passes, with "
       << run.blender << " (log: " << JoinPath(JoinPath(out_dir, "scene"), "blender.log") << ")\n";
   THINSLAB_RETURN_IF_ERROR(RenderBlenderPasses(run.blender, scene_dir, prefix, kRenderPasses, samples,

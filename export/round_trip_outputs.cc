@@ -6,6 +6,7 @@
 
 #include "thinslab/core/false_color.h"
 #include "thinslab/core/png_io.h"
+#include "thinslab/export/blender_scene.h"
 
 namespace thinslab {
 
@@ -21,6 +22,15 @@ Status ResolveRoundTripFit(const std::string& session_dir, const std::string& gi
 
 std::string RoundTripOutDir(const std::string& session_dir, const std::string& given) {
   return given.empty() ? JoinPath(JoinPath(session_dir, "fit"), "roundtrip") : given;
+}
+
+Status WriteRoundTripScene(const RenderScene& scene, const std::string& staged_dir, const Provenance& provenance,
+                           std::string* scene_dir, std::string* render_prefix) {
+  *scene_dir = JoinPath(staged_dir, "scene");
+  THINSLAB_RETURN_IF_ERROR(CreateDirectories(*scene_dir));
+  THINSLAB_RETURN_IF_ERROR(WriteBlenderScene(scene, *scene_dir, provenance));
+  *render_prefix = JoinPath(*scene_dir, "render");
+  return Status::Ok();
 }
 
 nlohmann::json RoundTripSummaryHead(const std::string& kind, const Provenance& provenance,

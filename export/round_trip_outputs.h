@@ -30,6 +30,11 @@ Status ResolveRoundTripFit(const std::string& session_dir, const std::string& gi
                            const std::string& fit_command, std::string* fit_dir);
 // `given` (--out), else CAPTURE/fit/roundtrip.
 std::string RoundTripOutDir(const std::string& session_dir, const std::string& given);
+// The scene folder of a round trip: `staged_dir`/scene with the Blender scene written there with
+// `provenance`; *scene_dir is that folder, *render_prefix the render's file prefix (scene/render).
+Status WriteRoundTripScene(const RenderScene& scene, const std::string& staged_dir, const Provenance& provenance,
+                           std::string* scene_dir, std::string* render_prefix);
+
 // summary.json's first fields: format, provenance, kind, session, fit, renderer, samples.
 nlohmann::json RoundTripSummaryHead(const std::string& kind, const Provenance& provenance,
                                     const std::string& session_dir, const std::string& fit_dir, int samples);
