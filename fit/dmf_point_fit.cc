@@ -624,6 +624,7 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
     const double k_s_smooth = fit.k_s;
     const bool filled =
         FillTailBeyondMeasured(rows, grid, options.roughness, options.ndf_tail_max_misfit, &log_d, &tail);
+    fit.family_tail = filled;
     if (filled) {
       fit.k_s = grid.ProjectedIntegral(log_d);
       fit.log_ndf = normalise(log_d, fit.k_s);
@@ -745,6 +746,7 @@ void PackDmfPointFit(const DmfPointFit& f, ByteWriter* out) {
   out->Put(f.num_used);
   out->Put(f.log_rms_residual);
   out->Put(f.measured_ndf_fraction);
+  out->Put(f.family_tail);
   out->Put(f.transmittance);
   out->Put(f.roughness);
   out->Put(f.split_fitted);
@@ -758,9 +760,10 @@ bool UnpackDmfPointFit(ByteReader* in, DmfPointFit* f) {
   return in->Get(&f->status) && in->Get(&f->alpha) && in->Get(&f->smith_alpha) && in->Get(&f->k_s) &&
          in->Get(&f->rho_d) && in->GetVector(&f->log_ndf) && in->Get(&f->ndf_interpolated) &&
          in->Get(&f->alpha_iterations) && in->Get(&f->alpha_residual) && in->Get(&f->num_used) &&
-         in->Get(&f->log_rms_residual) && in->Get(&f->measured_ndf_fraction) && in->Get(&f->transmittance) &&
-         in->Get(&f->roughness) && in->Get(&f->split_fitted) && in->Get(&f->split_alpha_difference) &&
-         in->Get(&f->split_roughness_difference) && in->Get(&f->sigma_alpha) && in->Get(&f->sigma_roughness);
+         in->Get(&f->log_rms_residual) && in->Get(&f->measured_ndf_fraction) && in->Get(&f->family_tail) &&
+         in->Get(&f->transmittance) && in->Get(&f->roughness) && in->Get(&f->split_fitted) &&
+         in->Get(&f->split_alpha_difference) && in->Get(&f->split_roughness_difference) && in->Get(&f->sigma_alpha) &&
+         in->Get(&f->sigma_roughness);
 }
 
 }  // namespace thinslab

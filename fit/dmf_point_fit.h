@@ -174,8 +174,12 @@ struct DmfPointFit {
   double alpha_residual = 0;
   int num_used = 0;             // Training measurements in Eq. 16.
   double log_rms_residual = 0;  // RMS of the Eq. 15 residuals in ln units at the solution.
+  // The NDF beyond the measured cells' hull is the fitted family's tail (DmfPointFitOptions::
+  // ndf_tail "family" and within its misfit limit); false: Eq. 17's fill (or interpolated).
+  bool family_tail = false;
   // Share of the fitted NDF's projected integral in cells that an Eq. 16 row touches (the 2 x 2
-  // bilinear footprint of either virtual configuration's half vector); 0 when not fitted.
+  // bilinear footprint of either virtual configuration's half vector), of the table as Eq. 17
+  // fills it (before a family tail, DmfPointFitOptions::ndf_tail); 0 when not fitted.
   double measured_ndf_fraction = 0;
   // Directional transmittance of the fitted model for this view, integral of R cos(theta_i)
   // d omega_i over the light hemisphere (energy conservation wants <= 1); 0 when not fitted.

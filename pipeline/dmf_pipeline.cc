@@ -480,6 +480,20 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
   }
   std::map<std::string, int> counts;
   for (const DmfPointFit& f : maps.fits) ++counts[DmfStatusName(f.status)];
+  // The NDF tail of the points fitted directly (the representatives of a clustered run; the
+  // interpolated points' NDFs mix theirs).
+  int direct_with_ndf = 0, direct_with_family_tail = 0;
+  auto count_tail = [&](int p) {
+    const DmfPointFit& f = maps.fits[p];
+    if (f.log_ndf.empty()) return;
+    ++direct_with_ndf;
+    direct_with_family_tail += f.family_tail;
+  };
+  if (run.fit.cluster) {
+    for (int p : maps.clustering.representatives) count_tail(p);
+  } else {
+    for (int p = 0; p < static_cast<int>(maps.fits.size()); ++p) count_tail(p);
+  }
   // Family, rough face and equivalent roughness over the points whose fit stands (ok, interpolated).
   std::map<std::string, int> families, faces;
   std::vector<double> roughness;
@@ -523,6 +537,12 @@ Status FitDmfPipeline(const std::string& session_dir, const std::string& out_dir
                          {"equivalent_roughness_quantiles", {{"p10", quantile(0.1)}, {"median", quantile(0.5)}, {"p90", quantile(0.9)}}},
                          {"family_ratio", run.fit.point.roughness.family_ratio},
                          {"one_face_alpha", run.fit.point.roughness.one_face_alpha}};
+  j["ndf_tail"] = {
+      {"note", "the NDF beyond the hull of the measured cells: the family fitted to them, or Eq. 17's fill"},
+      {"mode", run.fit.point.ndf_tail},
+      {"max_misfit", run.fit.point.ndf_tail_max_misfit},
+      {"direct_fits_with_ndf", direct_with_ndf},
+      {"direct_fits_with_family_tail", direct_with_family_tail}};
   j["dot_rms_residual_m"] = processing.dot_rms_residual_m;
   j["dot_radius"] = {{"monitor_px", processing.dot_radius_px}, {"source", processing.dot_radius_source}};
   j["glass_thickness_m"] = processing.glass_thickness_m;

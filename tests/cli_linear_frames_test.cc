@@ -177,6 +177,13 @@ TEST(LinearFramesDotScan, DmfFitAndLadderAreInvariantToTheValueScale) {
   // 1; 1.43 when every sample counted, before 2026-12-06).
   EXPECT_NEAR(summary[0]["noise"]["variance_per_value"].get<double>(), 1.0, 0.1);
   EXPECT_EQ(summary[0]["status_counts"], summary[1]["status_counts"]);
+  // The fitted family's tail beyond the measured cells (the default) on most direct fits, and on
+  // the same ones at either scale.
+  EXPECT_EQ(summary[0]["ndf_tail"]["mode"], "family");
+  EXPECT_GT(summary[0]["ndf_tail"]["direct_fits_with_family_tail"].get<int>(),
+            summary[0]["ndf_tail"]["direct_fits_with_ndf"].get<int>() / 2)
+      << summary[0]["ndf_tail"].dump();
+  EXPECT_EQ(summary[0]["ndf_tail"], summary[1]["ndf_tail"]);
   EXPECT_EQ(summary[0]["ladder"]["rung_counts"], summary[1]["ladder"]["rung_counts"]);
   // Measured: rungs 0 (36), 3 (180), 4 (128), 5 (56): the ladder uses more than one rung.
   EXPECT_GE(summary[0]["ladder"]["rung_counts"].size(), 3u) << summary[0]["ladder"].dump();
