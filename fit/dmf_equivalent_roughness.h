@@ -52,8 +52,10 @@ EquivalentRoughness FitEquivalentRoughness(const std::vector<double>& log_ndf, c
 void DecideFamily(const EquivalentRoughnessOptions& options, EquivalentRoughness* r);
 
 // The family tail beyond the measured NDF: the analytic distribution (family, isotropic roughness
-// and scale) nearest to ln D over the cells with `use[cell]` (same misfit as
-// FitEquivalentRoughness, D not normalised, so `scale` carries D's level).
+// and scale) nearest to ln D over the cells with `use[cell]` (D not normalised, so `scale`
+// carries D's level). The family and `misfit` by FitEquivalentRoughness's relative L2 misfit;
+// alpha and scale by the RMS of ln D - ln(scale D_family), which weighs the lobe's edge, where
+// the tail continues, as much as its peak. scale 0 when fewer than 3 cells are usable.
 struct FamilyTail {
   NdfFamily family = NdfFamily::kUndecided;
   double alpha = 0, scale = 0, misfit = 1;
