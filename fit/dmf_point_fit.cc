@@ -163,24 +163,16 @@ std::vector<bool> MeasuredCells(const std::vector<Row>& rows, const DmfNdfGrid& 
   return measured;
 }
 
-// DmfPointFitOptions::ndf_tail "family": beyond the convex hull of the measured cells, ln D is the
-// family fitted to the measured cells (FitFamilyTail) instead of Eq. 17's fill, which falls
-// towards the boundary value ln 1e-6 within a few cells and so drops the mass of a long (GGX)
-// tail that no dot reaches; k_s, the integral of D, then reads low (issue #24).
-// Returns whether it did; *tail is the family fitted, whether used or not.
-bool FillTailBeyondMeasured(const std::vector<Row>& rows, const DmfNdfGrid& grid,
-                            const EquivalentRoughnessOptions& options, double max_misfit, std::vector<double>* log_d,
-                            FamilyTail* tail_out) {
-  const std::vector<bool> measured = MeasuredCells(rows, grid);
-  const FamilyTail tail = FitFamilyTail(*log_d, grid, measured, options);
-  *tail_out = tail;
-  if (!(tail.scale > 0) || tail.misfit > max_misfit) return false;
-  // Andrew's monotone chain over the measured cells' (col, row), counter-clockwise.
+// Cells outside the convex hull (Andrew's monotone chain over (col, row)) of the `measured` cells;
+// none when the measured cells span no area.
+std::vector<bool> OutsideMeasuredHull(const std::vector<bool>& measured, const DmfNdfGrid& grid) {
   using P = std::array<int, 2>;
   std::vector<P> points;
   for (int cell = 0; cell < grid.num_cells(); ++cell) {
     if (measured[cell]) points.push_back({cell % grid.n(), cell / grid.n()});
   }
+  std::vector<bool> outside(grid.num_cells(), false);
+  if (points.size() < 3) return outside;
   std::sort(points.begin(), points.end());
   auto cross = [](const P& o, const P& a, const P& b) {
     return static_cast<int64_t>(a[0] - o[0]) * (b[1] - o[1]) - static_cast<int64_t>(a[1] - o[1]) * (b[0] - o[0]);
@@ -195,28 +187,46 @@ bool FillTailBeyondMeasured(const std::vector<Row>& rows, const DmfNdfGrid& grid
     while (k >= lower && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
     hull[k++] = points[i];
   }
-  hull.resize(k > 0 ? k - 1 : 0);
-  if (hull.size() < 3) return false;
-  auto inside_hull = [&](const P& p) {
-    for (size_t e = 0; e < hull.size(); ++e) {
-      if (cross(hull[e], hull[(e + 1) % hull.size()], p) < 0) return false;
-    }
-    return true;
-  };
+  hull.resize(k - 1);
+  if (hull.size() < 3) return outside;
   for (int cell = 0; cell < grid.num_cells(); ++cell) {
-    if (!grid.InDisk(cell) || measured[cell] || inside_hull({cell % grid.n(), cell / grid.n()})) continue;
-    const double d = FamilyTailD(tail, grid, cell);
-    if (d > 0) (*log_d)[cell] = std::max(std::log(d), DmfNdfGrid::kLogEpsilon);
+    const P p{cell % grid.n(), cell / grid.n()};
+    for (size_t e = 0; e < hull.size(); ++e) {
+      if (cross(hull[e], hull[(e + 1) % hull.size()], p) < 0) {
+        outside[cell] = true;
+        break;
+      }
+    }
   }
-  return true;
+  return outside;
+}
+
+// DmfPointFitOptions::ndf_tail "family": beyond the convex hull of the measured cells, ln D is the
+// family fitted to the measured cells (FitFamilyTail) instead of Eq. 17's fill, which falls
+// towards the boundary value ln 1e-6 within a few cells and so drops the mass of a long (GGX)
+// tail that no dot reaches; k_s, the integral of D, then reads low (issue #24).
+// Returns whether it did; *tail is the family fitted, whether used or not.
+bool FillTailBeyondMeasured(const std::vector<bool>& measured, const DmfNdfGrid& grid,
+                            const EquivalentRoughnessOptions& options, double max_misfit, std::vector<double>* log_d,
+                            FamilyTail* tail) {
+  *tail = FitFamilyTail(*log_d, grid, measured, options);
+  if (!(tail->scale > 0) || tail->misfit > max_misfit) return false;
+  const std::vector<bool> outside = OutsideMeasuredHull(measured, grid);
+  bool filled = false;
+  for (int cell = 0; cell < grid.num_cells(); ++cell) {
+    if (!grid.InDisk(cell) || !outside[cell]) continue;
+    const double d = FamilyTailD(*tail, grid, cell);
+    if (d > 0) (*log_d)[cell] = std::max(std::log(d), DmfNdfGrid::kLogEpsilon);
+    filled = true;
+  }
+  return filled;
 }
 
 // DmfPointFit::measured_ndf_fraction: the projected integral of D over the cells some row's
 // stencil touches, over the whole integral `total`.
-double MeasuredNdfFraction(const std::vector<Row>& rows, const DmfNdfGrid& grid, const std::vector<double>& log_d,
+double MeasuredNdfFraction(const std::vector<bool>& touched, const DmfNdfGrid& grid, const std::vector<double>& log_d,
                            double total) {
   if (!(total > 0)) return 0;
-  const std::vector<bool> touched = MeasuredCells(rows, grid);
   std::vector<double> measured(grid.num_cells(), DmfNdfGrid::kLogEpsilon);
   for (int cell = 0; cell < grid.num_cells(); ++cell) {
     if (touched[cell]) measured[cell] = log_d[cell];
@@ -616,14 +626,15 @@ DmfPointFit FitDualMicrofacetPoint(const DmfSlice& slice, const DmfNdfGrid& grid
   // The measured share and the equivalent roughness are judged on Eq. 17's fill: the share is a
   // sampling diagnostic (how much of the lobe the dots cover), and a family tail would only
   // restate the family to the roughness fit.
-  fit.measured_ndf_fraction = MeasuredNdfFraction(rows, grid, log_d, fit.k_s);
+  const std::vector<bool> measured = MeasuredCells(rows, grid);
+  fit.measured_ndf_fraction = MeasuredNdfFraction(measured, grid, log_d, fit.k_s);
   fit.log_ndf = normalise(log_d, fit.k_s);
   fit.roughness = FitEquivalentRoughness(fit.log_ndf, grid, options.roughness);
   if (options.ndf_tail == "family") {
     FamilyTail tail;
     const double k_s_smooth = fit.k_s;
     const bool filled =
-        FillTailBeyondMeasured(rows, grid, options.roughness, options.ndf_tail_max_misfit, &log_d, &tail);
+        FillTailBeyondMeasured(measured, grid, options.roughness, options.ndf_tail_max_misfit, &log_d, &tail);
     fit.family_tail = filled;
     if (filled) {
       fit.k_s = grid.ProjectedIntegral(log_d);
